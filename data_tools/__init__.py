@@ -1,0 +1,10 @@
+"""Data for nrsfm: benchmark loaders, synthetic sequences, noise, tracks from video."""
+
+from .mocap import DAI_K, MOCAP_K, MOCAP_NAMES, load_all, load_mocap, mocap_dir
+from .noise import add_noise, drop_tracks
+from .sequence import Sequence
+from .synthetic import MOTIONS, camera_rotations, default_sequence, make_synthetic
+
+__all__ = ["DAI_K", "MOCAP_K", "MOCAP_NAMES", "MOTIONS", "Sequence", "add_noise",
+           "camera_rotations", "default_sequence", "drop_tracks", "load_all", "load_mocap",
+           "make_synthetic", "mocap_dir"]

@@ -1,0 +1,217 @@
+"""The public entry point: ``reconstruct(W, K, method=...)``, and its result type."""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._validation import blas_threads, check_K, check_measurements, check_rotations
+from .measurement import Factorization, centre_rows, factorize
+from .scale import normalization_scale
+from .shape import pseudo_inverse_shapes, truncate_rank
+
+__all__ = ["METHODS", "Reconstruction", "reconstruct"]
+
+#: method -> (rotation strategy, shape prior). ``None`` prior: rank-K pseudo-inverse shape.
+METHODS = {
+    "organic": ("organic", "organic"),        # all K triplets, averaged; PSVT (N = 1) WNN
+    "bmm": ("bmm", "nuclear"),                 # Dai et al.: first triplet, nuclear norm
+    "wnn": ("organic", "weighted"),           # weighted nuclear norm over all singular values
+    "pseudo_inverse": ("organic", None),      # rank-K truncated pinv(R) W
+}
+
+
+@dataclass
+class Reconstruction:
+    """Result of :func:`reconstruct`, with the intermediates of every stage.
+
+    Attributes
+    ----------
+    rotations : (F, 3, 3) ndarray
+        Camera rotation per frame (world to camera).
+    shapes : (F, 3, P) ndarray
+        3D shape per frame in the camera's world frame, in the input's units:
+        ``rotations[f, :2] @ shapes[f]`` approximates the centred ``W_f``.
+    method, K : str, int
+    W : (2F, P) ndarray
+        The row-centred input, in the input's units.
+    row_means : (2F,) ndarray
+        What centring removed (per-frame translation).
+    scale : float
+        The solvers ran on ``W / scale`` (see :mod:`nrsfm.scale`).
+    factorization : Factorization
+        Rank-3K SVD of ``W / scale`` (``M_hat``, ``B_hat``, singular values).
+    rotation_stage : object or None
+        The rotation stage's result (triplets G^k, per-triplet rotations R^k,
+        registration, filtering, averaging), None when rotations were given.
+    shape_stage : object or None
+        The shape stage's result (X_init, weights, ADMM history), None for
+        ``method="pseudo_inverse"``.
+    X_init : (F, 3, P) ndarray
+        Pseudo-inverse shape ``pinv(R) W`` in the input's units.
+    params : dict
+        Every setting used.
+    timings : dict
+        Seconds per stage.
+    """
+
+    rotations: np.ndarray
+    shapes: np.ndarray
+    method: str
+    K: int
+    W: np.ndarray
+    row_means: np.ndarray
+    scale: float
+    factorization: Factorization
+    X_init: np.ndarray
+    rotation_stage: object = None
+    shape_stage: object = None
+    params: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self):
+        return self.shapes.shape[0]
+
+    @property
+    def n_points(self):
+        return self.shapes.shape[2]
+
+    def reprojection_error(self):
+        """RMS of ``W_f - R_f X_f`` over all entries, in the input's units."""
+        proj = (self.rotations[:, :2] @ self.shapes).reshape(self.W.shape)
+        return float(np.sqrt(np.mean((self.W - proj) ** 2)))
+
+    def errors(self, shapes_gt=None, rotations_gt=None):
+        """Benchmark errors against ground truth: dict with e3d, e3d_akhter, e_R."""
+        from .metrics import e3d, e3d_akhter, rotation_error
+
+        out = {}
+        if shapes_gt is not None:
+            out["e3d"] = e3d(self.shapes, shapes_gt)
+            out["e3d_akhter"] = e3d_akhter(self.shapes, shapes_gt)
+        if rotations_gt is not None:
+            out["e_R"] = rotation_error(self.rotations, rotations_gt)
+        return out
+
+    def summary(self):
+        """A few lines describing the run."""
+        F, P = self.n_frames, self.n_points
+        lines = [f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, "
+                 f"scale={self.scale:.4g}",
+                 f"  reprojection RMS {self.reprojection_error():.3g} (input units)"]
+        t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
+        lines.append(f"  time: {t}")
+        return "\n".join(lines)
+
+
+def _progress_printer(progress):
+    if callable(progress):
+        return progress
+    if progress:
+        return lambda msg: print(f"[nrsfm] {msg}", file=sys.stderr, flush=True)
+    return lambda msg: None
+
+
+def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
+                shape_options=None, progress=False, blas_thread_limit=1):
+    """Recover camera rotations and per-frame 3D shapes from 2D tracks.
+
+    Parameters
+    ----------
+    W : (2F, P) or (F, 2, P) array_like
+        Measurements: rows ``x_f, y_f`` interleaved, or per-frame tracks. Rows are
+        centred here (per-frame translation is removed).
+    K : int
+        Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P)``.
+    method : {"organic", "bmm", "wnn", "pseudo_inverse"}
+        ``organic`` (default): all K corrective triplets, registered, filtered and
+        L1-averaged rotations; shape by partial-sum weighted nuclear norm ADMM (N = 1).
+        ``bmm``: Dai et al.'s baseline (first triplet, plain nuclear norm).
+        ``wnn``: the averaged rotations with a weighted nuclear norm on every singular
+        value (N = 0). ``pseudo_inverse``: rank-K truncation of ``pinv(R) W``.
+    rotations : (F, 3, 3) array_like, optional
+        Known camera rotations; the rotation stage is then skipped.
+    seed : int
+        Seed for every random choice (results are deterministic for a given seed).
+    rotation_options, shape_options : dict, optional
+        Passed to :func:`nrsfm.rotations.estimate_rotations` and
+        :func:`nrsfm.shape.optimize_shapes`.
+    progress : bool or callable
+        Print stage progress to stderr (or call ``progress(message)``).
+    blas_thread_limit : int or None
+        BLAS threads while the solvers run (the matrices are small: one is fastest).
+
+    Returns
+    -------
+    Reconstruction
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, non-finite input, K out of range, unknown method, bad rotations.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
+    W = check_measurements(W)
+    F, P = W.shape[0] // 2, W.shape[1]
+    K = check_K(K, F, P)
+    if rotations is not None:
+        rotations = check_rotations(rotations, "rotations", n_frames=F)
+    say = _progress_printer(progress)
+    rotation_strategy, prior = METHODS[method]
+    timings = {}
+
+    limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
+    with limit:
+        t0 = time.perf_counter()
+        Wc, row_means = centre_rows(W)
+        scale = normalization_scale(Wc)
+        Wn = Wc / scale
+        fact = factorize(Wn, K)
+        timings["factorize"] = time.perf_counter() - t0
+        say(f"rank-{3 * K} factorisation of {2 * F}x{P} W: residual {fact.residual:.3g}")
+
+        rotation_stage = None
+        if rotations is None:
+            from .rotations import estimate_rotations
+
+            t0 = time.perf_counter()
+            rotation_stage = estimate_rotations(
+                fact.M_hat, K, strategy=rotation_strategy, seed=seed, progress=say,
+                **(rotation_options or {}))
+            rotations = rotation_stage.rotations
+            timings["rotations"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        shape_stage = None
+        if prior is None:
+            X_init = pseudo_inverse_shapes(Wn, rotations)
+            shapes = truncate_rank(X_init, K)
+        else:
+            from .shape import optimize_shapes
+
+            shape_stage = optimize_shapes(Wn, rotations, K, prior=prior, progress=say,
+                                          **(shape_options or {}))
+            X_init, shapes = shape_stage.X_init, shape_stage.shapes
+        timings["shape"] = time.perf_counter() - t0
+
+    params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
+                  shape_prior=prior, rotation_options=dict(rotation_options or {}),
+                  shape_options=dict(shape_options or {}), scale=scale,
+                  rotations_given=rotation_stage is None)
+    return Reconstruction(rotations=rotations, shapes=shapes * scale, method=method, K=K,
+                          W=Wc, row_means=row_means, scale=scale, factorization=fact,
+                          X_init=X_init * scale, rotation_stage=rotation_stage,
+                          shape_stage=shape_stage, params=params, timings=timings)
+
+
+class _nullcontext:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
