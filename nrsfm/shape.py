@@ -2,13 +2,38 @@
 
 Notation: ``X`` is the per-frame shape, (F, 3, P); ``X#`` (``X_sharp``) its reshuffle
 Phi(X), (F, 3P), whose row f is ``[x-coords, y-coords, z-coords]`` of frame f's P points.
+
+The optimisation (paper Eq. 8, 10) is
+
+    minimise_{X, X#}  1/2 ||W - R X||_F^2 + mu ||X#||_{r=N, theta}   s.t.  X# = Phi(X)
+
+with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)`` (a partial sum of weighted
+singular values), solved by ADMM (Eq. 11-13) with the partial singular value thresholding
+(PSVT) operator of Oh et al. for the X# step. Three priors share the same machinery:
+
+``organic``  (the paper): N = 1, theta_i = xi / (sigma_i(X_init#) + gamma) (Eq. 9).
+``weighted`` (R-BMM-style baseline): N = 0, the same weights on every singular value.
+``nuclear``  (BMM's shape model): N = 0, equal weights theta_i = xi / (sigma_1(X_init#) +
+             gamma) for every i, i.e. the organic weight of the first singular value.
+             (With mu = 1, this is the weakest weight of the weighted prior applied to every
+             singular value; see ``benchmarks/shape_study.py`` for the measured effect.)
+
+Open details decided by measurement (``benchmarks/shape_study.py``, ground-truth rotations
+on the four Akhter sequences): see :func:`optimize_shapes` ("Notes").
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, field
+
 import numpy as np
 
-__all__ = ["phi", "phi_inv", "pseudo_inverse_shapes", "truncate_rank"]
+__all__ = ["PRIORS", "ShapeResult", "optimize_shapes", "phi", "phi_inv", "psvt",
+           "pseudo_inverse_shapes", "shape_weights", "truncate_rank"]
+
+#: Shape priors understood by :func:`optimize_shapes`: prior -> default N.
+PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
 
 
 def phi(X):
@@ -46,3 +71,340 @@ def truncate_rank(X, K):
     """Project X# = Phi(X) onto its top-K singular vectors; returns (F, 3, P)."""
     U, s, Vt = np.linalg.svd(phi(X), full_matrices=False)
     return phi_inv((U[:, :K] * s[:K]) @ Vt[:K], X.shape[2])
+
+
+# --------------------------------------------------------------------------------------
+# PSVT and weights
+# --------------------------------------------------------------------------------------
+
+def psvt(Q, N, tau, return_singular_values=False):
+    """Partial singular value thresholding ``P_{N, tau}[Q]`` (Oh et al.; paper's theorem).
+
+    Solves ``argmin_P  ||P||_{r=N, tau} + 1/2 ||P - Q||_F^2`` where
+    ``||P||_{r=N, tau} = sum_{i > N} tau_i sigma_i(P)``: the leading N singular values of Q
+    are kept, the others soft-thresholded, ``sigma_i -> max(sigma_i - tau_i, 0)``. For
+    non-decreasing ``tau_i`` (i > N) this is the exact proximal operator; for the weighted
+    prior with decreasing weights it is the standard weighted-SVT step (a fixed point of
+    the weighted problem, as used by the paper and R-BMM).
+
+    Parameters
+    ----------
+    Q : (m, n) array_like
+    N : int
+        Number of leading singular values left untouched, ``0 <= N``.
+    tau : float or (min(m, n),) array_like
+        Threshold, a scalar or one per singular value (entries for i < N are ignored).
+        Must be non-negative.
+    return_singular_values : bool
+        Also return the thresholded singular values.
+
+    Returns
+    -------
+    P : (m, n) ndarray
+    s : (min(m, n),) ndarray
+        Only if ``return_singular_values``: the singular values of P (in Q's order).
+
+    Raises
+    ------
+    ValueError
+        Q not 2-D or not finite, N negative or not an integer, tau negative, non-finite or
+        of the wrong length.
+    """
+    Q = np.asarray(Q, dtype=float)
+    if Q.ndim != 2:
+        raise ValueError(f"Q must be a 2-D matrix; got shape {Q.shape}")
+    if not np.all(np.isfinite(Q)):
+        raise ValueError("Q contains NaN or infinite entries")
+    r = min(Q.shape)
+    N = _check_N(N)
+    tau = _check_tau(tau, r)
+    U, s, Vt = np.linalg.svd(Q, full_matrices=False)
+    s_new = _threshold(s, N, tau)
+    P = (U * s_new) @ Vt
+    return (P, s_new) if return_singular_values else P
+
+
+def _threshold(s, N, tau):
+    """Keep s[:N], soft-threshold s[N:] by tau (scalar or per value)."""
+    out = np.maximum(s - tau, 0.0)
+    out[:N] = s[:N]
+    return out
+
+
+def _check_N(N):
+    if isinstance(N, bool) or not isinstance(N, (int, np.integer)):
+        raise ValueError(f"N must be a non-negative integer; got {N!r}")
+    if N < 0:
+        raise ValueError(f"N must be a non-negative integer; got {N}")
+    return int(N)
+
+
+def _check_tau(tau, r):
+    tau = np.asarray(tau, dtype=float)
+    if tau.ndim == 0:
+        tau = np.full(r, float(tau))
+    elif tau.shape != (r,):
+        raise ValueError(f"tau must be a scalar or have {r} entries (one per singular value);"
+                         f" got shape {tau.shape}")
+    if not np.all(np.isfinite(tau)) or np.any(tau < 0):
+        raise ValueError("tau must be finite and non-negative")
+    return tau
+
+
+def shape_weights(sigma, xi=None, gamma=1e-6):
+    """Organic shape weights, paper Eq. (9): ``theta_i = xi / (sigma_i + gamma)``.
+
+    Parameters
+    ----------
+    sigma : (r,) array_like
+        Singular values of ``X_init# = Phi(X_init)``, in decreasing order.
+    xi : float, optional
+        Numerator; default ``5e-3 * sqrt(sigma_1)`` (paper Sec. 4, implementation details).
+    gamma : float
+        Small positive constant preventing division by zero (paper: 1e-6).
+
+    Returns
+    -------
+    theta : (r,) ndarray
+        Weights, increasing as the singular values decrease.
+
+    Raises
+    ------
+    ValueError
+        sigma empty, negative or non-finite; xi or gamma not positive.
+    """
+    sigma = np.asarray(sigma, dtype=float)
+    if sigma.ndim != 1 or sigma.size == 0:
+        raise ValueError(f"sigma must be a non-empty 1-D array; got shape {sigma.shape}")
+    if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
+        raise ValueError("sigma must be finite and non-negative")
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise ValueError(f"gamma must be positive; got {gamma!r}")
+    if xi is None:
+        xi = 5e-3 * math.sqrt(float(sigma.max()))
+    if not (np.isfinite(xi) and xi > 0):
+        raise ValueError(f"xi must be positive; got {xi!r} (is X_init zero?)")
+    return xi / (sigma + gamma)
+
+
+# --------------------------------------------------------------------------------------
+# ADMM (Eq. 10-13)
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class ShapeResult:
+    """Result of :func:`optimize_shapes`.
+
+    Attributes
+    ----------
+    shapes : (F, 3, P) ndarray
+        The final shape (in the units of the W given, i.e. normalised units in the pipeline).
+    X_init : (F, 3, P) ndarray
+        Pseudo-inverse shape ``pinv(R_f) W_f`` (planar per frame).
+    X_init_singular_values : (min(F, 3P),) ndarray
+        Singular values of ``X_init# = Phi(X_init)``.
+    theta : (min(F, 3P),) ndarray
+        Weights used (Eq. 9 for ``organic``/``weighted``; constant for ``nuclear``). The
+        first N are reported but not used (those singular values are not penalised).
+    N : int
+        Number of leading singular values left unpenalised.
+    prior : str
+    history : dict of (n_iter,) ndarrays
+        Per iteration: ``cost`` (Eq. 10 objective at (X, X#)), ``data_term``
+        (``1/2 ||W - R X||_F^2``), ``residual`` (``max |X# - Phi(X)|``), ``rho`` (the
+        penalty used in that iteration).
+    n_iter : int
+    converged : bool
+        True when the residual fell below ``eps``; False when stopped by ``rho_max`` or
+        ``max_iter``.
+    params : dict
+        Every constant used.
+    """
+
+    shapes: np.ndarray
+    X_init: np.ndarray
+    X_init_singular_values: np.ndarray
+    theta: np.ndarray
+    N: int
+    prior: str
+    history: dict = field(default_factory=dict)
+    n_iter: int = 0
+    converged: bool = False
+    params: dict = field(default_factory=dict)
+
+
+def _check_inputs(W, R):
+    W = np.asarray(W, dtype=float)
+    if W.ndim != 2 or W.shape[0] % 2:
+        raise ValueError(f"W must have shape (2F, P); got {W.shape}")
+    if not np.all(np.isfinite(W)):
+        raise ValueError("W contains NaN or infinite entries")
+    F, P = W.shape[0] // 2, W.shape[1]
+    if F < 1 or P < 1:
+        raise ValueError(f"W is empty: shape {W.shape}")
+    R = np.asarray(R, dtype=float)
+    if R.ndim != 3 or R.shape[1] not in (2, 3) or R.shape[2] != 3:
+        raise ValueError(f"R must have shape (F, 3, 3) or (F, 2, 3); got {R.shape}")
+    if R.shape[0] != F:
+        raise ValueError(f"R has {R.shape[0]} frames but W has {F} (W shape {W.shape})")
+    if not np.all(np.isfinite(R)):
+        raise ValueError("R contains NaN or infinite entries")
+    Rf = R[:, :2, :]
+    dev = float(np.abs(Rf @ Rf.transpose(0, 2, 1) - np.eye(2)).max())
+    if dev > 1e-6:
+        raise ValueError(f"the first two rows of every R_f must be orthonormal "
+                         f"(max |R R' - I| = {dev:.3g})")
+    return W, Rf, F, P
+
+
+def _positive(name, value, strict=True):
+    ok = np.isfinite(value) and (value > 0 if strict else value >= 0)
+    if not ok:
+        raise ValueError(f"{name} must be {'positive' if strict else 'non-negative'} "
+                         f"and finite; got {value!r}")
+    return float(value)
+
+
+def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=1.1,
+                    rho_max=1e10, eps=1e-10, xi=None, gamma=1e-6, max_iter=1000,
+                    init="full", output="X", progress=None):
+    """Low-rank shape by ADMM on Eq. (10) with the PSVT X# step (paper Sec. 3.2).
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements (normalised units, see :mod:`nrsfm.scale`).
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+        Camera rotations; the first two rows of each must be orthonormal.
+    K : int
+        Number of shape bases (used by ``init="rank_k"``; recorded in ``params``).
+    prior : {"organic", "weighted", "nuclear"}
+        Thresholding rule, see the module docstring.
+    N : int, optional
+        Leading singular values left unpenalised; default 1 for ``organic``, 0 otherwise.
+    mu : float
+        Weight of the regulariser (paper: 1).
+    rho0, lam, rho_max : float
+        Initial penalty, its growth factor per iteration (> 1) and its cap
+        (paper: 1e-4, 1.1, 1e10).
+    eps : float
+        Stop when ``max |X# - Phi(X)| < eps`` (paper: 1e-10).
+    xi, gamma : float
+        Eq. (9) constants; ``xi`` defaults to ``5e-3 sqrt(sigma_1(X_init#))``.
+    max_iter : int
+        Safety cap on iterations (the rho schedule alone stops after
+        ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
+    init : {"full", "rank_k"}
+        Start ``X = X# = X_init`` (``full``) or its rank-K truncation (``rank_k``).
+    output : {"X", "X_sharp"}
+        Return ``X`` (the data-step variable) or ``Phi^-1(X#)`` (the low-rank variable).
+    progress : callable(str) or None
+        Called with a line every 100 iterations and at the end.
+
+    Returns
+    -------
+    ShapeResult
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, non-finite entries, non-orthonormal rotations, unknown prior, init or
+        output, non-positive constants, ``lam <= 1``.
+
+    Notes
+    -----
+    One iteration t (Eq. 11-13), with ``Z = Phi^-1(X# + Y / rho)``:
+
+    * X step, per frame in closed form (Eq. 12):
+      ``X_f = (R_f'R_f + rho I)^-1 (R_f'W_f + rho Z_f)``. For orthonormal rows,
+      ``R_f'R_f`` is the projector onto the image plane, and the inverse reduces to
+      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames).
+    * X# step (Eq. 13 and the PSVT theorem):
+      ``X# = P_{N, mu theta / rho}[Phi(X) - Y / rho]``.
+    * ``Y += rho (X# - Phi(X))``; ``rho = min(rho_max, lam rho)``.
+    * Stop when ``max |X# - Phi(X)| < eps`` or ``rho >= rho_max``.
+
+    ``Y`` starts at zero.
+    """
+    if prior not in PRIORS:
+        raise ValueError(f"unknown shape prior {prior!r}; expected one of {sorted(PRIORS)}")
+    if init not in ("full", "rank_k"):
+        raise ValueError(f"init must be 'full' or 'rank_k'; got {init!r}")
+    if output not in ("X", "X_sharp"):
+        raise ValueError(f"output must be 'X' or 'X_sharp'; got {output!r}")
+    W, Rf, F, P = _check_inputs(W, R)
+    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
+        raise ValueError(f"K must be a positive integer; got {K!r}")
+    K = int(K)
+    N = PRIORS[prior] if N is None else _check_N(N)
+    mu = _positive("mu", mu, strict=False)
+    rho0 = _positive("rho0", rho0)
+    rho_max = _positive("rho_max", rho_max)
+    eps = _positive("eps", eps, strict=False)
+    lam = _positive("lam", lam)
+    if lam <= 1:
+        raise ValueError(f"lam must be > 1 (rho grows each iteration); got {lam}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) \
+            or max_iter < 1:
+        raise ValueError(f"max_iter must be a positive integer; got {max_iter!r}")
+    say = progress if callable(progress) else (lambda msg: None)
+
+    Wf = W.reshape(F, 2, P)
+    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
+    X_init = Rt @ Wf                                # pinv(R_f) = R_f' for orthonormal rows
+    sigma = np.linalg.svd(phi(X_init), compute_uv=False)
+    if not sigma[0] > 0:
+        raise ValueError("the pseudo-inverse shape is zero (W is zero?)")
+    if xi is None:
+        xi = 5e-3 * math.sqrt(float(sigma[0]))     # paper Sec. 4
+    xi = _positive("xi", xi)
+    gamma = _positive("gamma", gamma)
+    theta = shape_weights(sigma, xi, gamma)         # Eq. (9)
+    if prior == "nuclear":
+        theta = np.full_like(sigma, theta[0])       # equal weights (BMM's nuclear norm)
+    reg_w = mu * theta.copy()
+    reg_w[:N] = 0.0                                 # partial sum: first N free (Eq. 10)
+
+    X = truncate_rank(X_init, K) if init == "rank_k" else X_init.copy()
+    Xs = phi(X).copy()
+    Y = np.zeros_like(Xs)
+    rho = rho0
+    hist = {k: [] for k in ("cost", "data_term", "residual", "rho")}
+    converged = False
+    n_iter = 0
+    for n_iter in range(1, max_iter + 1):
+        # X step (Eq. 12), closed form per frame, vectorised.
+        Z = phi_inv(Xs + Y / rho, P)
+        X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
+        # X# step (Eq. 13): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho.
+        U, s, Vt = np.linalg.svd(phi(X) - Y / rho, full_matrices=False)
+        s_new = _threshold(s, N, reg_w / rho)
+        Xs = (U * s_new) @ Vt
+        # Multiplier and penalty updates.
+        D = Xs - phi(X)
+        Y += rho * D
+        resid = float(np.abs(D).max())
+        data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
+        hist["cost"].append(data + float(reg_w @ s_new))
+        hist["data_term"].append(data)
+        hist["residual"].append(resid)
+        hist["rho"].append(rho)
+        rho = min(rho_max, lam * rho)
+        if n_iter % 100 == 0:
+            say(f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
+                f"residual {resid:.3g}, rho {rho:.3g}")
+        if resid < eps:
+            converged = True
+            break
+        if rho >= rho_max:
+            break
+    say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
+        f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
+        f"cost {hist['cost'][-1]:.6g}")
+    shapes = X if output == "X" else phi_inv(Xs, P).copy()
+    params = dict(prior=prior, N=N, K=K, mu=mu, rho0=rho0, lam=lam, rho_max=rho_max, eps=eps,
+                  xi=xi, gamma=gamma, max_iter=int(max_iter), init=init, output=output)
+    return ShapeResult(shapes=shapes, X_init=X_init, X_init_singular_values=sigma,
+                       theta=theta, N=N, prior=prior,
+                       history={k: np.asarray(v) for k, v in hist.items()},
+                       n_iter=n_iter, converged=converged, params=params)

@@ -1,0 +1,496 @@
+"""Rerun recordings of a reconstruction: every stage's intermediates, for inspection.
+
+Two steps, kept apart:
+
+* :func:`recording_content` computes what is shown (pure numpy, no rerun): the estimate
+  aligned to the ground truth for display, per-frame errors, the rotation samples of every
+  corrective triplet, the ADMM history, singular values and a text report.
+* :func:`log_content` sends that content to a ``rerun.RecordingStream``.
+
+:func:`build_recording` does both and returns the stream (buffered in memory until a sink
+is attached, e.g. ``rec.save(path)`` or ``rec.notebook_show()``); :func:`save_recording`
+writes an ``.rrd`` file.
+
+Display alignment (what the 3D view shows)
+------------------------------------------
+NRSfM recovers shapes and cameras up to a global rotation / reflection (and each frame's
+shape up to the camera's depth sign). To overlay estimate and ground truth:
+
+* shapes: each estimated frame is mapped onto the ground truth of that frame by a
+  similarity Procrustes (rotation, reflection, scale: :func:`nrsfm.metrics.similarity_align`)
+  -- the same alignment as the ``e3d`` metric, so the gap seen between the two point clouds
+  is what ``e3d`` measures. Both are drawn centred in the ground truth's world frame.
+* cameras (and every rotation sample): one global orthogonal ``Q`` minimising
+  ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2`` (the alignment of the ``e_R`` metric); the
+  displayed camera is ``R_est,f[:2] Q`` completed with ``r3 = r1 x r2``.
+
+Without ground truth nothing is aligned: the estimate is drawn as returned.
+
+Entity paths
+------------
+======================================  ==========================================  ========
+path                                    archetype                                   timeline
+======================================  ==========================================  ========
+/world/shapes/estimate                  Points3D (aligned estimate)                 frame
+/world/shapes/estimate/skeleton         LineStrips3D (where edges exist)            frame
+/world/shapes/ground_truth[/skeleton]   Points3D, LineStrips3D                      frame
+/world/cameras/estimate                 Transform3D (camera to world) + axes        frame
+/world/cameras/ground_truth             Transform3D + axes                          frame
+/world/trajectory/estimate|ground_truth LineStrips3D of the camera centres          static
+/rotations/triplet_k (k = 1..K)         Arrows3D: rows of registered R^k_f; grey    frame
+                                        where the sample was filtered out
+/rotations/averaged, /rotations/ground_truth  Arrows3D                              frame
+/rotation_samples/kept/triplet_k        Scalars 1 kept / 0 filtered                 frame
+/rotation_samples/distance/triplet_k    Scalars chordal ||R^k_f - R_f||_F           frame
+/rotation_samples/coefficient/triplet_k Scalars c_fk of the triplet                 frame
+/errors/e3d, /errors/e_R                Scalars per frame                           frame
+/image/measured, /image/reprojected     Points2D: W_f and R_f X_f                   frame
+/admm/{cost,data_term,residual,rho}     Scalars, the raw ADMM history               admm_iteration
+/admm_log10/{residual,rho}              Scalars, log10 of the same                  admm_iteration
+/singular_values/W                      BarChart, sigma_i(W / scale)                static
+/singular_values/X_init                 BarChart, sigma_i(X_init# / scale)          static
+/singular_values/theta                  BarChart, the WNN weights theta_i           static
+/run/report                             TextDocument (markdown)                     static
+======================================  ==========================================  ========
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["RecordingContent", "recording_content", "log_content", "make_blueprint",
+           "build_recording", "save_recording", "ENTITY_PATHS"]
+
+#: Top-level entity paths written (sub-paths depend on the stages that ran).
+ENTITY_PATHS = ("/world", "/rotations", "/rotation_samples", "/errors", "/image", "/admm",
+                "/admm_log10", "/singular_values", "/run")
+
+ESTIMATE_COLOR = (255, 140, 0, 255)
+GT_COLOR = (70, 130, 255, 255)
+AXIS_COLORS = np.array([(230, 60, 60, 255), (60, 200, 60, 255), (70, 110, 255, 255)],
+                       dtype=np.uint8)
+DROPPED_COLOR = (140, 140, 140, 110)
+ADMM_KEYS = ("cost", "data_term", "residual", "rho")
+
+
+# --------------------------------------------------------------------------- computation
+
+@dataclass
+class RecordingContent:
+    """Everything a recording shows, as numpy arrays (no rerun objects).
+
+    Shapes are (F, P, 3) point arrays (rerun's layout), rotations (F, 3, 3).
+    """
+
+    n_frames: int
+    n_points: int
+    frames: np.ndarray
+    shapes_est: np.ndarray
+    shapes_gt: np.ndarray | None = None
+    edges: np.ndarray | None = None
+    cameras_est: np.ndarray | None = None
+    cameras_gt: np.ndarray | None = None
+    camera_distance: float = 1.0
+    axis_length: float = 0.3
+    tracks: np.ndarray | None = None          # (F, P, 2) measured (centred) W
+    reprojected: np.ndarray | None = None     # (F, P, 2) R_f X_f
+    triplet_rotations: np.ndarray | None = None   # (K, F, 3, 3) registered, display-aligned
+    triplet_kept: np.ndarray | None = None        # (K, F) bool
+    triplet_distance: np.ndarray | None = None    # (K, F) chordal distance to final R_f
+    triplet_coefficients: np.ndarray | None = None  # (K, F)
+    averaged: np.ndarray | None = None            # (F, 3, 3) display-aligned
+    rotations_gt_display: np.ndarray | None = None
+    errors_per_frame: dict = field(default_factory=dict)
+    errors: dict = field(default_factory=dict)
+    admm: dict = field(default_factory=dict)      # name -> (n_iter,) float array
+    singular_values: dict = field(default_factory=dict)  # name -> 1-D array
+    report: str = ""
+    aligned: bool = False
+
+
+def _complete(R2):
+    """(F, 2, 3) or (F, 3, 3) -> (F, 3, 3) with the third row r1 x r2."""
+    R2 = np.asarray(R2, float)[..., :2, :]
+    return np.concatenate([R2, np.cross(R2[..., 0, :], R2[..., 1, :])[..., None, :]], axis=-2)
+
+
+def camera_alignment(R_est, R_gt):
+    """Global orthogonal Q minimising ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2``."""
+    A = np.asarray(R_est, float)[:, :2]
+    B = np.asarray(R_gt, float)[:, :2]
+    U, _, Vt = np.linalg.svd(np.einsum("fki,fkj->ij", A, B))
+    return U @ Vt
+
+
+def _gt_world(sequence):
+    """Ground-truth shapes in the ground truth's world frame, (F, 3, P), or None."""
+    if sequence is None or sequence.shapes is None:
+        return None
+    if getattr(sequence, "world_shapes", None) is not None:
+        X = np.asarray(sequence.world_shapes, float)
+    elif sequence.rotations is not None:
+        X = np.asarray(sequence.rotations, float).transpose(0, 2, 1) @ sequence.shapes
+    else:
+        X = np.asarray(sequence.shapes, float)    # no camera: camera frame is the world
+    return X - X.mean(axis=2, keepdims=True)
+
+
+def _stage_value(stage, name, default=None):
+    return getattr(stage, name, default) if stage is not None else default
+
+
+def recording_content(result, sequence=None):
+    """Compute what a recording of ``result`` shows (no rerun calls).
+
+    Parameters
+    ----------
+    result : nrsfm.Reconstruction
+        Stages may be missing (``rotation_stage`` / ``shape_stage`` None): their parts are
+        left out.
+    sequence : data_tools.Sequence, optional
+        Ground truth (shapes, rotations, skeleton edges). Frame count must match.
+
+    Returns
+    -------
+    RecordingContent
+    """
+    from .metrics import e3d, rotation_error, similarity_align
+    from .shape import phi
+
+    F, P = result.n_frames, result.n_points
+    X_est = np.asarray(result.shapes, float)
+    R_est = np.asarray(result.rotations, float)
+    if sequence is not None and sequence.n_frames != F:
+        raise ValueError(f"sequence has {sequence.n_frames} frames, result has {F}")
+
+    X_gt = _gt_world(sequence)
+    R_gt = None if sequence is None or sequence.rotations is None else np.asarray(
+        sequence.rotations, float)
+    if X_gt is not None:
+        X_disp = similarity_align(X_est, X_gt)
+    else:
+        X_disp = X_est - X_est.mean(axis=2, keepdims=True)
+    Q = camera_alignment(R_est, R_gt) if R_gt is not None else np.eye(3)
+
+    def disp_rot(R):
+        return _complete(np.asarray(R, float)[..., :2, :] @ Q)
+
+    ref = X_gt if X_gt is not None else X_disp
+    extent = float(np.max(np.linalg.norm(ref, axis=1))) if ref.size else 1.0
+    extent = extent if extent > 0 else 1.0
+    c = RecordingContent(n_frames=F, n_points=P, frames=np.arange(F),
+                         shapes_est=X_disp.transpose(0, 2, 1).copy(),
+                         shapes_gt=None if X_gt is None else X_gt.transpose(0, 2, 1).copy(),
+                         edges=None if sequence is None or sequence.edges is None
+                         else np.asarray(sequence.edges, int),
+                         cameras_est=disp_rot(R_est),
+                         cameras_gt=None if R_gt is None else _complete(R_gt),
+                         camera_distance=2.0 * extent, axis_length=0.5 * extent,
+                         aligned=X_gt is not None)
+
+    Wt = np.asarray(result.W, float).reshape(F, 2, P)
+    c.tracks = Wt.transpose(0, 2, 1).copy()
+    c.reprojected = (R_est[:, :2] @ X_est).transpose(0, 2, 1).copy()
+
+    # errors
+    if sequence is not None and sequence.shapes is not None:
+        c.errors_per_frame["e3d"] = e3d(X_est, sequence.shapes, per_frame=True)
+    if R_gt is not None:
+        c.errors_per_frame["e_R"] = rotation_error(R_est, R_gt, per_frame=True)
+    c.errors = {k: float(np.mean(v)) for k, v in c.errors_per_frame.items()}
+    c.errors["reprojection_rms"] = result.reprojection_error()
+
+    # rotation stage
+    rs = result.rotation_stage
+    registered = _stage_value(rs, "registered")
+    if registered is not None:
+        registered = np.asarray(registered, float)
+        K = registered.shape[0]
+        c.triplet_rotations = disp_rot(registered)
+        kept = _stage_value(rs, "kept")
+        c.triplet_kept = (np.ones((K, F), bool) if kept is None
+                          else np.asarray(kept, bool).reshape(K, F))
+        final = _complete(R_est)
+        c.triplet_distance = np.linalg.norm(_complete(registered) - final[None], axis=(2, 3))
+        coeff = _stage_value(rs, "coefficients")
+        if coeff is not None:
+            c.triplet_coefficients = np.asarray(coeff, float).reshape(K, F)
+    averaged = _stage_value(rs, "averaged")
+    if averaged is not None:
+        c.averaged = disp_rot(averaged)
+    if rs is not None and R_gt is not None:
+        c.rotations_gt_display = _complete(R_gt)
+
+    # shape stage
+    ss = result.shape_stage
+    history = _stage_value(ss, "history") or {}
+    for key in list(ADMM_KEYS) + sorted(k for k in history if k not in ADMM_KEYS):
+        if key in history:
+            v = np.asarray(history[key], float).ravel()
+            if v.size:
+                c.admm[key] = v
+
+    # singular values, in the solver's units (input / result.scale)
+    c.singular_values["W"] = np.asarray(result.factorization.singular_values, float)
+    sv_x = _stage_value(ss, "X_init_singular_values")
+    if sv_x is None:
+        sv_x = np.linalg.svd(phi(np.asarray(result.X_init, float) / result.scale),
+                             compute_uv=False)
+    c.singular_values["X_init"] = np.asarray(sv_x, float)
+    theta = _stage_value(ss, "theta")
+    if theta is not None:
+        c.singular_values["theta"] = np.asarray(theta, float).ravel()
+
+    c.report = _report(result, sequence, c)
+    return c
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, np.ndarray):
+        return f"array{v.shape}"
+    if isinstance(v, dict):
+        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items()) or "{}"
+    return str(v)
+
+
+def _report(result, sequence, c):
+    name = getattr(sequence, "name", None) or "(no ground truth)"
+    lines = [f"# nrsfm run: `{result.method}` on {name}", "",
+             f"F = {result.n_frames} frames, P = {result.n_points} points, K = {result.K}, "
+             f"scale = {result.scale:.6g}", "", "## Errors", "", "| metric | value |",
+             "| --- | --- |"]
+    lines += [f"| {k} | {v:.6g} |" for k, v in c.errors.items()]
+    lines += ["", "## Stages", "",
+              f"- rotation stage: {'ran' if result.rotation_stage is not None else 'skipped (rotations given)'}",
+              f"- shape stage: {'ran' if result.shape_stage is not None else 'skipped (pseudo-inverse + rank-K truncation)'}"]
+    ss = result.shape_stage
+    if ss is not None:
+        lines.append(f"- ADMM: {_stage_value(ss, 'n_iter')} iterations, "
+                     f"converged = {_stage_value(ss, 'converged')}")
+    rs = result.rotation_stage
+    if c.triplet_kept is not None:
+        lines.append(f"- rotation samples kept by the filter: {int(c.triplet_kept.sum())} of "
+                     f"{c.triplet_kept.size}")
+    if rs is not None and _stage_value(rs, "strategy") is not None:
+        lines.append(f"- rotation strategy: {_stage_value(rs, 'strategy')}")
+    lines += ["", "## Parameters", "", "| parameter | value |", "| --- | --- |"]
+    lines += [f"| {k} | {_fmt(v)} |" for k, v in result.params.items()]
+    lines += ["", "## Timings (s)", "", "| stage | seconds |", "| --- | --- |"]
+    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    lines += ["", "## Display", "",
+              ("Estimated shapes are similarity-aligned per frame onto the ground truth (as in "
+               "e3d); cameras and rotation samples by one global orthogonal alignment (as in e_R)."
+               if c.aligned else "No ground truth: shapes and cameras are drawn as estimated."),
+              "Singular values are in the solver's units (input / scale)."]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- logging
+
+def make_blueprint(content=None):
+    """A default layout: 3D view and 2D image left; time series, bar charts, report right."""
+    import rerun.blueprint as rrb
+
+    left = [rrb.Spatial3DView(origin="/world", name="shapes and cameras")]
+    if content is None or content.triplet_rotations is not None:
+        left.append(rrb.Spatial3DView(origin="/rotations", name="rotation samples"))
+    left.append(rrb.Spatial2DView(origin="/image", name="image: measured vs reprojected"))
+    series = []
+    if content is None or content.admm:
+        series.append(rrb.TimeSeriesView(origin="/admm", name="ADMM (raw)"))
+        series.append(rrb.TimeSeriesView(origin="/admm_log10", name="ADMM (log10)"))
+    if content is None or content.errors_per_frame:
+        series.append(rrb.TimeSeriesView(origin="/errors", name="per-frame errors"))
+    if content is None or content.triplet_rotations is not None:
+        series.append(rrb.TimeSeriesView(origin="/rotation_samples",
+                                         name="rotation samples"))
+    bars = [rrb.BarChartView(origin=f"/singular_values/{n}", name=f"singular values {n}")
+            for n in (content.singular_values if content is not None
+                      else ("W", "X_init"))]
+    right = []
+    if series:
+        right.append(rrb.Tabs(*series))
+    right.append(rrb.Horizontal(*bars))
+    right.append(rrb.TextDocumentView(origin="/run/report", name="report"))
+    return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(*left), rrb.Vertical(*right),
+                                        column_shares=[3, 2]),
+                         collapse_panels=False)
+
+
+def _send_points(rec, rr, path, pts, frames, color, radius):
+    F, P = pts.shape[:2]
+    rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
+                     columns=rr.Points3D.columns(positions=pts.reshape(-1, 3)).partition(
+                         [P] * F))
+    rec.log(path, rr.Points3D.from_fields(colors=[color], radii=[radius]), static=True)
+
+
+def _send_skeleton(rec, rr, path, pts, edges, frames, color, radius):
+    F = pts.shape[0]
+    strips = pts[:, edges]                      # (F, E, 2, 3)
+    rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
+                     columns=rr.LineStrips3D.columns(strips=list(strips.reshape(-1, 2, 3)))
+                     .partition([len(edges)] * F))
+    rec.log(path, rr.LineStrips3D.from_fields(colors=[color], radii=[radius]), static=True)
+
+
+def _send_scalars(rec, rr, path, values, index, timeline, name=None):
+    rec.send_columns(path, indexes=[rr.TimeColumn(timeline, sequence=index)],
+                     columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
+    if name:
+        rec.log(path, rr.SeriesLines(names=name), static=True)
+
+
+def _send_camera(rec, rr, path, R, frames, distance, axis_length):
+    """Camera f as a transform camera -> world: rotation R_f' and centre -distance r3_f."""
+    centres = -distance * R[:, 2, :]
+    rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
+                     columns=rr.Transform3D.columns(mat3x3=R.transpose(0, 2, 1),
+                                                    translation=centres))
+    rec.log(path, rr.TransformAxes3D(axis_length), static=True)
+    return centres
+
+
+def _send_axes(rec, rr, path, R, frames, colors, length, radius):
+    """Rows of R_f (the camera axes in the world) as three arrows from the origin."""
+    F = R.shape[0]
+    rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
+                     columns=rr.Arrows3D.columns(vectors=(length * R).reshape(-1, 3),
+                                                 colors=colors.reshape(-1, 4))
+                     .partition([3] * F))
+    rec.log(path, rr.Arrows3D.from_fields(radii=[radius]), static=True)
+
+
+def log_content(rec, content):
+    """Send a :class:`RecordingContent` to the recording stream ``rec``."""
+    import rerun as rr
+
+    c = content
+    fr = c.frames
+    r_pt = 0.012 * c.camera_distance
+    r_ln = 0.4 * r_pt
+
+    _send_points(rec, rr, "/world/shapes/estimate", c.shapes_est, fr, ESTIMATE_COLOR, r_pt)
+    if c.edges is not None and len(c.edges):
+        _send_skeleton(rec, rr, "/world/shapes/estimate/skeleton", c.shapes_est, c.edges, fr,
+                       ESTIMATE_COLOR, r_ln)
+    if c.shapes_gt is not None:
+        _send_points(rec, rr, "/world/shapes/ground_truth", c.shapes_gt, fr, GT_COLOR, r_pt)
+        if c.edges is not None and len(c.edges):
+            _send_skeleton(rec, rr, "/world/shapes/ground_truth/skeleton", c.shapes_gt,
+                           c.edges, fr, GT_COLOR, r_ln)
+
+    for name, R, color in (("estimate", c.cameras_est, ESTIMATE_COLOR),
+                           ("ground_truth", c.cameras_gt, GT_COLOR)):
+        if R is None:
+            continue
+        centres = _send_camera(rec, rr, f"/world/cameras/{name}", R, fr, c.camera_distance,
+                               c.axis_length)
+        rec.log(f"/world/trajectory/{name}",
+                rr.LineStrips3D([centres], colors=[color], radii=[r_ln]), static=True)
+
+    # 2D image: measured tracks and reprojection of the estimate
+    P = c.n_points
+    for name, pts, color in (("measured", c.tracks, GT_COLOR),
+                             ("reprojected", c.reprojected, ESTIMATE_COLOR)):
+        rec.send_columns(f"/image/{name}", indexes=[rr.TimeColumn("frame", sequence=fr)],
+                         columns=rr.Points2D.columns(positions=pts.reshape(-1, 2)).partition(
+                             [P] * c.n_frames))
+        rec.log(f"/image/{name}", rr.Points2D.from_fields(colors=[color], radii=[r_pt]),
+                static=True)
+
+    # rotation samples
+    if c.triplet_rotations is not None:
+        K = c.triplet_rotations.shape[0]
+        for k in range(K):
+            colors = np.broadcast_to(AXIS_COLORS, (c.n_frames, 3, 4)).copy()
+            colors[~c.triplet_kept[k]] = DROPPED_COLOR
+            _send_axes(rec, rr, f"/rotations/triplet_{k + 1}", c.triplet_rotations[k], fr,
+                       colors, 1.0, 0.004)
+            _send_scalars(rec, rr, f"/rotation_samples/kept/triplet_{k + 1}",
+                          c.triplet_kept[k].astype(float), fr, "frame")
+            _send_scalars(rec, rr, f"/rotation_samples/distance/triplet_{k + 1}",
+                          c.triplet_distance[k], fr, "frame")
+            if c.triplet_coefficients is not None:
+                _send_scalars(rec, rr, f"/rotation_samples/coefficient/triplet_{k + 1}",
+                              c.triplet_coefficients[k], fr, "frame")
+    if c.averaged is not None:
+        _send_axes(rec, rr, "/rotations/averaged", c.averaged, fr,
+                   np.broadcast_to(AXIS_COLORS, (c.n_frames, 3, 4)), 1.15, 0.012)
+    if c.rotations_gt_display is not None:
+        _send_axes(rec, rr, "/rotations/ground_truth", c.rotations_gt_display, fr,
+                   np.broadcast_to(np.array(GT_COLOR, np.uint8), (c.n_frames, 3, 4)), 1.3,
+                   0.008)
+
+    for name, v in c.errors_per_frame.items():
+        _send_scalars(rec, rr, f"/errors/{name}", v, fr, "frame", name)
+
+    for name, v in c.admm.items():
+        it = np.arange(v.size)
+        _send_scalars(rec, rr, f"/admm/{name}", v, it, "admm_iteration", name)
+        if name in ("residual", "rho"):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lv = np.log10(np.where(v > 0, v, np.nan))
+            _send_scalars(rec, rr, f"/admm_log10/{name}", lv, it, "admm_iteration",
+                          f"log10 {name}")
+
+    for name, v in c.singular_values.items():
+        rec.log(f"/singular_values/{name}", rr.BarChart(v), static=True)
+
+    rec.log("/run/report", rr.TextDocument(c.report, media_type=rr.MediaType.MARKDOWN),
+            static=True)
+
+
+def _new_stream(application_id, recording_id):
+    import rerun as rr
+
+    return rr.RecordingStream(application_id,
+                              recording_id=recording_id or str(uuid.uuid4()))
+
+
+def build_recording(result, sequence=None, *, application_id="nrsfm", recording_id=None):
+    """A ``rerun.RecordingStream`` holding the whole run (buffered until a sink is set).
+
+    Attach a sink afterwards: ``rec.save("run.rrd")``, ``rec.notebook_show()``,
+    ``rec.spawn()``; the buffered data is forwarded to it. The default blueprint is sent.
+
+    Parameters
+    ----------
+    result : nrsfm.Reconstruction
+    sequence : data_tools.Sequence, optional
+        Ground truth to overlay (shapes, rotations, skeleton).
+    application_id, recording_id : str
+        Rerun identifiers; a random recording id by default.
+    """
+    content = recording_content(result, sequence)
+    rec = _new_stream(application_id, recording_id)
+    rec.send_blueprint(make_blueprint(content))
+    log_content(rec, content)
+    return rec
+
+
+def save_recording(result, path, sequence=None, **kw):
+    """Write the recording of ``result`` to an ``.rrd`` file; returns its Path.
+
+    Keyword arguments go to :func:`build_recording` (``application_id``,
+    ``recording_id``). Parent folders are created.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    content = recording_content(result, sequence)
+    rec = _new_stream(kw.pop("application_id", "nrsfm"), kw.pop("recording_id", None))
+    if kw:
+        raise TypeError(f"unexpected keyword arguments {sorted(kw)}")
+    rec.save(path, default_blueprint=make_blueprint(content))
+    try:
+        log_content(rec, content)
+        rec.flush()
+    finally:
+        rec.disconnect()
+    return path

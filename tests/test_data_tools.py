@@ -1,0 +1,145 @@
+import numpy as np
+import pytest
+
+import data_tools as dt
+from data_tools.mocap import AKHTER, TORRESANI
+
+
+@pytest.mark.parametrize("name", dt.MOCAP_NAMES)
+def test_load_mocap_shapes_and_camera_frame(mocap_dir, name):
+    seq = dt.load_mocap(name, mocap_dir)
+    F, P = seq.n_frames, seq.n_points
+    assert seq.W.shape == (2 * F, P)
+    assert seq.shapes.shape == (F, 3, P)
+    assert seq.K == dt.MOCAP_K[name]
+    # rows centred, shapes centred per frame
+    assert np.abs(seq.W.mean(axis=1)).max() < 1e-9 * np.abs(seq.W).max()
+    assert np.abs(seq.shapes.mean(axis=2)).max() < 1e-9 * np.abs(seq.shapes).max()
+    # camera-frame ground truth reproduces W by orthographic projection
+    np.testing.assert_allclose(seq.shapes[:, :2].reshape(2 * F, P), seq.W,
+                               atol=1e-9 * np.abs(seq.W).max())
+    if name in AKHTER:
+        R = seq.rotations
+        assert R.shape == (F, 3, 3)
+        np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
+                                   atol=1e-9)
+        np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-9)
+        np.testing.assert_allclose(R @ seq.world_shapes, seq.shapes, atol=1e-12)
+    else:
+        assert seq.rotations is None
+
+
+def test_sizes_match_the_paper(mocap_dir):
+    sizes = {n: (s.n_frames, s.n_points) for n, s in dt.load_all(mocap_dir).items()}
+    assert sizes == {"drink": (1102, 41), "pickup": (357, 41), "yoga": (307, 41),
+                     "stretch": (370, 41), "dance": (264, 75), "face": (316, 40),
+                     "walking": (260, 55), "shark": (240, 91)}
+
+
+def test_akhter_layout_skeleton_and_scale(mocap_dir):
+    seq = dt.load_mocap("pickup", mocap_dir)
+    assert seq.edges.min() == 0 and seq.edges.max() < seq.n_points
+    assert np.mean(np.std(seq.world_shapes, axis=2)) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_torresani_layout_is_stacked_by_coordinate(mocap_dir):
+    import scipy.io
+
+    raw = scipy.io.loadmat(str(mocap_dir / "walking.mat"))["P3_gt"]
+    seq = dt.load_mocap("walking", mocap_dir)
+    F = seq.n_frames
+    f = 17
+    x = raw[f] - raw[f].mean()
+    z = raw[2 * F + f] - raw[2 * F + f].mean()
+    np.testing.assert_allclose(seq.shapes[f, 0], x)
+    np.testing.assert_allclose(seq.shapes[f, 2], z)
+
+
+def test_missing_file_says_where_it_looked(tmp_path):
+    with pytest.raises(FileNotFoundError, match=str(tmp_path)):
+        dt.load_mocap("drink", tmp_path)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        dt.load_mocap("drink", tmp_path / "nowhere")
+
+
+def test_default_dir_from_env(monkeypatch, tmp_path):
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    with pytest.raises(FileNotFoundError, match="NRSFM_DATA"):
+        dt.load_mocap("drink")
+    monkeypatch.setenv("NRSFM_DATA", str(tmp_path))
+    with pytest.raises(FileNotFoundError, match=str(tmp_path / "mocap")):
+        dt.load_mocap("drink")
+
+
+def test_unknown_sequence():
+    with pytest.raises(ValueError, match="unknown MoCap sequence"):
+        dt.load_mocap("juggling")
+
+
+@pytest.mark.parametrize("motion", dt.MOTIONS)
+def test_synthetic_ground_truth_is_consistent(motion):
+    seq = dt.make_synthetic(F=40, P=20, K=3, motion=motion, seed=3)
+    F, P = 40, 20
+    assert seq.W.shape == (2 * F, P) and seq.shapes.shape == (F, 3, P)
+    np.testing.assert_allclose(seq.shapes[:, :2].reshape(2 * F, P), seq.W, atol=1e-12)
+    np.testing.assert_allclose(seq.rotations @ seq.world_shapes, seq.shapes, atol=1e-12)
+    R = seq.rotations
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+    # low rank: X# has rank K, W has rank <= 3K
+    s = np.linalg.svd(seq.world_shapes.reshape(F, -1), compute_uv=False)
+    assert s[3] < 1e-10 * s[0] and s[2] > 1e-3 * s[0]
+    assert np.linalg.matrix_rank(seq.W, tol=1e-9 * np.abs(seq.W).max()) <= 9
+
+
+def test_synthetic_motion_kinds_differ():
+    def step_deg(motion):
+        R = dt.make_synthetic(F=30, P=12, K=2, motion=motion, seed=1).rotations
+        rel = np.einsum("fij,fkj->fik", R[1:], R[:-1])
+        ang = np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1))
+        return np.degrees(ang).mean()
+
+    static, smooth, fast, rand = (step_deg(m) for m in ("static", "smooth", "fast", "random"))
+    assert static < 1 < smooth < 10 < fast < rand
+
+
+def test_synthetic_is_seeded_and_noise_is_applied():
+    a = dt.make_synthetic(F=20, P=12, K=2, seed=5, noise=0.01)
+    b = dt.make_synthetic(F=20, P=12, K=2, seed=5, noise=0.01)
+    c = dt.make_synthetic(F=20, P=12, K=2, seed=6, noise=0.01)
+    np.testing.assert_array_equal(a.W, b.W)
+    assert not np.allclose(a.W, c.W)
+    rel = np.std(a.W - a.extra["W_clean"]) / np.mean(np.std(a.extra["W_clean"], axis=1))
+    assert 0.005 < rel < 0.02
+    with pytest.raises(ValueError, match="too large"):
+        dt.make_synthetic(F=3, P=12, K=3)
+
+
+def test_noise_and_missing_data_generators():
+    W = dt.make_synthetic(F=30, P=15, K=2, seed=0).W
+    Wn = dt.add_noise(W, 0.05, seed=1)
+    np.testing.assert_allclose(Wn.mean(axis=1), 0, atol=1e-12)
+    np.testing.assert_array_equal(Wn, dt.add_noise(W, 0.05, seed=1))
+    Wm, mask = dt.drop_tracks(W, 0.3, seed=2)
+    assert mask.shape == (30, 15)
+    assert 0.2 < 1 - mask.mean() < 0.4
+    assert np.isnan(Wm).sum() == 2 * (~mask).sum()
+    np.testing.assert_array_equal(Wm[0::2][mask], W[0::2][mask])
+    with pytest.raises(ValueError):
+        dt.drop_tracks(W, 1.0)
+
+
+def test_tracks_from_frames_follows_moving_dots():
+    cv2 = pytest.importorskip("cv2")
+    rng = np.random.default_rng(0)
+    base = rng.uniform(40, 200, (25, 2))
+    frames = []
+    for f in range(8):
+        img = np.zeros((240, 240), np.uint8)
+        for x, y in base + [2.0 * f, 1.0 * f]:
+            cv2.circle(img, (int(round(x)), int(round(y))), 3, 255, -1)
+        frames.append(img)
+    tracks = dt.tracks_from_frames(frames)
+    assert tracks.shape[0] == 8 and tracks.shape[1] == 2 and tracks.shape[2] >= 20
+    np.testing.assert_allclose((tracks[-1] - tracks[0]).mean(axis=1), [14.0, 7.0], atol=0.5)
+    with pytest.raises(ValueError):
+        dt.tracks_from_frames([])

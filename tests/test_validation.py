@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+import data_tools as dt
+import nrsfm
+
+
+@pytest.fixture(scope="module")
+def seq():
+    return dt.make_synthetic(F=30, P=20, K=2, seed=2)
+
+
+def test_tracks_and_interleaved_give_the_same_result(seq):
+    a = nrsfm.reconstruct(seq.W, 2, method="pseudo_inverse", rotations=seq.rotations)
+    b = nrsfm.reconstruct(seq.tracks, 2, method="pseudo_inverse", rotations=seq.rotations)
+    np.testing.assert_array_equal(a.shapes, b.shapes)
+
+
+def test_input_is_not_modified_and_translation_is_removed(seq):
+    W = seq.W + 5.0
+    before = W.copy()
+    res = nrsfm.reconstruct(W, 2, method="pseudo_inverse", rotations=seq.rotations)
+    np.testing.assert_array_equal(W, before)
+    np.testing.assert_allclose(res.row_means, 5.0)
+    np.testing.assert_allclose(res.W, seq.W, atol=1e-12)
+
+
+@pytest.mark.parametrize("W, message", [
+    (np.zeros((10,)), r"\(2F, P\) or \(F, 2, P\)"),
+    (np.zeros((9, 12)), "even number of rows"),
+    (np.zeros((5, 3, 12)), r"\(F, 2, P\)"),
+    (np.zeros((2, 12)), "at least 2 frames"),
+    (np.zeros((10, 2)), "at least 3 points"),
+])
+def test_bad_shapes(W, message):
+    with pytest.raises(ValueError, match=message):
+        nrsfm.reconstruct(W, 1)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_non_finite(seq, value):
+    W = seq.W.copy()
+    W[3, 4] = value
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        nrsfm.reconstruct(W, 2)
+
+
+@pytest.mark.parametrize("K, message", [(0, "at least 1"), (-2, "at least 1"),
+                                        (7, "too large"), (2.5, "integer"), (True, "integer")])
+def test_bad_K(seq, K, message):
+    with pytest.raises(ValueError, match=message):
+        nrsfm.reconstruct(seq.W, K)
+
+
+def test_K_limit_is_min_of_2F_and_P():
+    W = dt.make_synthetic(F=4, P=30, K=2, seed=0).W       # 2F = 8 rows
+    with pytest.raises(ValueError, match=r"min\(8, 30\) = 8"):
+        nrsfm.reconstruct(W, 3)
+
+
+def test_unknown_method(seq):
+    with pytest.raises(ValueError, match="unknown method"):
+        nrsfm.reconstruct(seq.W, 2, method="magic")
+
+
+def test_bad_rotations(seq):
+    with pytest.raises(ValueError, match=r"\(F, 3, 3\)"):
+        nrsfm.reconstruct(seq.W, 2, rotations=seq.rotations[:, :2])
+    with pytest.raises(ValueError, match="frames"):
+        nrsfm.reconstruct(seq.W, 2, rotations=seq.rotations[:-1])
+    with pytest.raises(ValueError, match="orthonormal"):
+        nrsfm.reconstruct(seq.W, 2, rotations=2 * seq.rotations)
+    with pytest.raises(ValueError, match="det -1"):
+        nrsfm.reconstruct(seq.W, 2, rotations=seq.rotations @ np.diag([1, 1, -1]))
+
+
+def test_constant_W_is_rejected():
+    with pytest.raises(ValueError, match="constant"):
+        nrsfm.reconstruct(np.ones((10, 6)), 1, method="pseudo_inverse",
+                          rotations=np.tile(np.eye(3), (5, 1, 1)))
+
+
+def test_pseudo_inverse_with_given_rotations_result_object(seq):
+    res = nrsfm.reconstruct(seq.W, 2, method="pseudo_inverse", rotations=seq.rotations)
+    F, P = 30, 20
+    assert res.rotations.shape == (F, 3, 3) and res.shapes.shape == (F, 3, P)
+    assert res.X_init.shape == (F, 3, P) and res.rotation_stage is None
+    assert res.factorization.M_hat.shape == (2 * F, 6)
+    # X_init explains W exactly; its rank-K truncation is what is returned
+    proj = (res.rotations[:, :2] @ res.X_init).reshape(2 * F, P)
+    np.testing.assert_allclose(proj, res.W, atol=1e-10)
+    s = np.linalg.svd(res.shapes.reshape(F, -1), compute_uv=False)
+    assert s[2] < 1e-10 * s[0]
+    assert "pseudo_inverse" in res.summary()
