@@ -33,8 +33,9 @@ class Reconstruction:
     rotations : (F, 3, 3) ndarray
         Camera rotation per frame (world to camera).
     shapes : (F, 3, P) ndarray
-        3D shape per frame in the camera's world frame, in the input's units:
-        ``rotations[f, :2] @ shapes[f]`` approximates the centred ``W_f``.
+        3D shape X_f per frame in the world frame of the recovered cameras, in the input's
+        units: ``rotations[f, :2] @ shapes[f]`` approximates the centred ``W_f`` (the
+        factorisation's X, as in BMM). :attr:`camera_shapes` gives ``R_f X_f``.
     method, K : str, int
     W : (2F, P) ndarray
         The row-centred input, in the input's units.
@@ -80,19 +81,45 @@ class Reconstruction:
     def n_points(self):
         return self.shapes.shape[2]
 
+    @property
+    def camera_shapes(self):
+        """(F, 3, P) shapes in each frame's camera frame, ``R_f X_f`` (x, y match W_f)."""
+        return self.rotations @ self.shapes
+
     def reprojection_error(self):
         """RMS of ``W_f - R_f X_f`` over all entries, in the input's units."""
         proj = (self.rotations[:, :2] @ self.shapes).reshape(self.W.shape)
         return float(np.sqrt(np.mean((self.W - proj) ** 2)))
 
-    def errors(self, shapes_gt=None, rotations_gt=None):
-        """Benchmark errors against ground truth: dict with e3d, e3d_akhter, e_R."""
+    def errors(self, shapes_gt=None, rotations_gt=None, world_shapes_gt=None):
+        """Benchmark errors against ground truth.
+
+        Parameters
+        ----------
+        shapes_gt : (F, 3, P) ndarray, optional
+            Ground truth in the camera frame (``Sequence.shapes``).
+        rotations_gt : (F, 3, 3) ndarray, optional
+            Ground-truth cameras (``Sequence.rotations``).
+        world_shapes_gt : (F, 3, P) ndarray, optional
+            Ground truth in its world frame; defaults to ``R_gt' shapes_gt`` when rotations
+            are given, else ``shapes_gt`` (a fixed identity camera).
+
+        Returns
+        -------
+        dict
+            ``e3d`` (per-frame similarity alignment, frame-independent), ``e3d_akhter``
+            (one global alignment of the world-frame shapes, as Akhter's and Dai's code do)
+            and ``e_R`` where rotations are given.
+        """
         from .metrics import e3d, e3d_akhter, rotation_error
 
         out = {}
         if shapes_gt is not None:
             out["e3d"] = e3d(self.shapes, shapes_gt)
-            out["e3d_akhter"] = e3d_akhter(self.shapes, shapes_gt)
+            if world_shapes_gt is None:
+                world_shapes_gt = (shapes_gt if rotations_gt is None else
+                                   np.asarray(rotations_gt).transpose(0, 2, 1) @ shapes_gt)
+            out["e3d_akhter"] = e3d_akhter(self.shapes, world_shapes_gt)
         if rotations_gt is not None:
             out["e_R"] = rotation_error(self.rotations, rotations_gt)
         return out

@@ -26,32 +26,33 @@ shape up to the camera's depth sign). To overlay estimate and ground truth:
 
 Without ground truth nothing is aligned: the estimate is drawn as returned.
 
-Entity paths
-------------
-======================================  ==========================================  ========
-path                                    archetype                                   timeline
-======================================  ==========================================  ========
-/world/shapes/estimate                  Points3D (aligned estimate)                 frame
-/world/shapes/estimate/skeleton         LineStrips3D (where edges exist)            frame
-/world/shapes/ground_truth[/skeleton]   Points3D, LineStrips3D                      frame
-/world/cameras/estimate                 Transform3D (camera to world) + axes        frame
-/world/cameras/ground_truth             Transform3D + axes                          frame
-/world/trajectory/estimate|ground_truth LineStrips3D of the camera centres          static
-/rotations/triplet_k (k = 1..K)         Arrows3D: rows of registered R^k_f; grey    frame
-                                        where the sample was filtered out
-/rotations/averaged, /rotations/ground_truth  Arrows3D                              frame
-/rotation_samples/kept/triplet_k        Scalars 1 kept / 0 filtered                 frame
-/rotation_samples/distance/triplet_k    Scalars chordal ||R^k_f - R_f||_F           frame
-/rotation_samples/coefficient/triplet_k Scalars c_fk of the triplet                 frame
-/errors/e3d, /errors/e_R                Scalars per frame                           frame
-/image/measured, /image/reprojected     Points2D: W_f and R_f X_f                   frame
-/admm/{cost,data_term,residual,rho}     Scalars, the raw ADMM history               admm_iteration
-/admm_log10/{residual,rho}              Scalars, log10 of the same                  admm_iteration
-/singular_values/W                      BarChart, sigma_i(W / scale)                static
-/singular_values/X_init                 BarChart, sigma_i(X_init# / scale)          static
-/singular_values/theta                  BarChart, the WNN weights theta_i           static
-/run/report                             TextDocument (markdown)                     static
-======================================  ==========================================  ========
+Entity paths (timeline in brackets)
+-----------------------------------
+* ``/world/shapes/estimate`` Points3D, the aligned estimate [frame];
+  ``/world/shapes/estimate/skeleton`` LineStrips3D where the sequence has edges [frame]
+* ``/world/shapes/ground_truth`` and ``.../skeleton`` [frame]
+* ``/world/cameras/estimate``, ``/world/cameras/ground_truth``: Transform3D camera -> world
+  (rotation ``R_f'``, centre ``-d r3_f``) with TransformAxes3D [frame]
+* ``/world/trajectory/estimate``, ``/world/trajectory/ground_truth``: LineStrips3D of the
+  camera centres [static]
+* ``/rotations/triplet_k`` (k = 1..K): Arrows3D, the rows of the registered ``R^k_f``,
+  grey where the filter dropped the sample; ``/rotations/averaged`` (the L1 average, before
+  the smoothness sign rule), ``/rotations/ground_truth`` [frame]
+* ``/rotation_samples/kept/triplet_k`` (1 kept, 0 dropped),
+  ``/rotation_samples/distance/triplet_k`` (chordal ``||R^k_f - R_avg,f||_F``),
+  ``/rotation_samples/coefficient/triplet_k`` (``|c_fk|``),
+  ``/rotation_samples/sign_from_smoothness`` (1 where the depth sign was flipped):
+  Scalars [frame]
+* ``/errors/e3d``, ``/errors/e_R``: per-frame errors, Scalars [frame]
+* ``/image/measured``, ``/image/reprojected``: Points2D, ``W_f`` and ``R_f X_f`` [frame]
+* ``/admm/cost``, ``/admm/data_term``, ``/admm/residual``, ``/admm/rho``: the raw ADMM
+  history, Scalars; ``/admm_log10/residual``, ``/admm_log10/rho`` [admm_iteration]
+* ``/singular_values/W`` (of ``W / scale``), ``/singular_values/X_init`` (of
+  ``X_init# / scale``), ``/singular_values/theta`` (the weights): BarChart [static]
+* ``/run/report``: TextDocument, markdown: parameters, errors, timings [static]
+
+Parts of a stage that did not run (``rotation_stage`` / ``shape_stage`` None) and ground
+truth that is not given are left out.
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["RecordingContent", "recording_content", "log_content", "make_blueprint",
-           "build_recording", "save_recording", "ENTITY_PATHS"]
+           "build_recording", "save_recording", "output_path", "show_recording",
+           "ENTITY_PATHS"]
 
 #: Top-level entity paths written (sub-paths depend on the stages that ran).
 ENTITY_PATHS = ("/world", "/rotations", "/rotation_samples", "/errors", "/image", "/admm",
@@ -100,9 +102,10 @@ class RecordingContent:
     reprojected: np.ndarray | None = None     # (F, P, 2) R_f X_f
     triplet_rotations: np.ndarray | None = None   # (K, F, 3, 3) registered, display-aligned
     triplet_kept: np.ndarray | None = None        # (K, F) bool
-    triplet_distance: np.ndarray | None = None    # (K, F) chordal distance to final R_f
+    triplet_distance: np.ndarray | None = None    # (K, F) chordal distance to the average
     triplet_coefficients: np.ndarray | None = None  # (K, F)
     averaged: np.ndarray | None = None            # (F, 3, 3) display-aligned
+    sign_from_smoothness: np.ndarray | None = None  # (F,) bool
     rotations_gt_display: np.ndarray | None = None
     errors_per_frame: dict = field(default_factory=dict)
     errors: dict = field(default_factory=dict)
@@ -214,11 +217,15 @@ def recording_content(result, sequence=None):
         kept = _stage_value(rs, "kept")
         c.triplet_kept = (np.ones((K, F), bool) if kept is None
                           else np.asarray(kept, bool).reshape(K, F))
-        final = _complete(R_est)
+        avg = _stage_value(rs, "averaged")
+        final = _complete(avg if avg is not None else R_est)
         c.triplet_distance = np.linalg.norm(_complete(registered) - final[None], axis=(2, 3))
         coeff = _stage_value(rs, "coefficients")
         if coeff is not None:
             c.triplet_coefficients = np.asarray(coeff, float).reshape(K, F)
+    flips = _stage_value(rs, "sign_from_smoothness")
+    if flips is not None:
+        c.sign_from_smoothness = np.asarray(flips, bool).ravel()
     averaged = _stage_value(rs, "averaged")
     if averaged is not None:
         c.averaged = disp_rot(averaged)
@@ -285,8 +292,10 @@ def _report(result, sequence, c):
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
     lines += ["", "## Display", "",
               ("Estimated shapes are similarity-aligned per frame onto the ground truth (as in "
-               "e3d); cameras and rotation samples by one global orthogonal alignment (as in e_R)."
-               if c.aligned else "No ground truth: shapes and cameras are drawn as estimated."),
+               "e3d)." if c.aligned else "No ground-truth shapes: shapes drawn as estimated."),
+              ("Cameras and rotation samples: one global orthogonal alignment onto the "
+               "ground-truth cameras (as in e_R)." if c.cameras_gt is not None else
+               "No ground-truth cameras: cameras and rotation samples drawn as estimated."),
               "Singular values are in the solver's units (input / scale)."]
     return "\n".join(lines)
 
@@ -420,6 +429,9 @@ def log_content(rec, content):
             if c.triplet_coefficients is not None:
                 _send_scalars(rec, rr, f"/rotation_samples/coefficient/triplet_{k + 1}",
                               c.triplet_coefficients[k], fr, "frame")
+    if c.sign_from_smoothness is not None:
+        _send_scalars(rec, rr, "/rotation_samples/sign_from_smoothness",
+                      c.sign_from_smoothness.astype(float), fr, "frame")
     if c.averaged is not None:
         _send_axes(rec, rr, "/rotations/averaged", c.averaged, fr,
                    np.broadcast_to(AXIS_COLORS, (c.n_frames, 3, 4)), 1.15, 0.012)
@@ -494,3 +506,51 @@ def save_recording(result, path, sequence=None, **kw):
     finally:
         rec.disconnect()
     return path
+
+
+# --------------------------------------------------------------------------- notebooks
+
+def output_path(name, subdir="notebooks"):
+    """Where notebooks and scripts write recordings: ``$NRSFM_OUT/name`` if set, else
+    ``<repository>/out/<subdir>/name`` (the repository of this package)."""
+    import os
+
+    root = os.environ.get("NRSFM_OUT")
+    base = Path(root) if root else Path(__file__).resolve().parents[1] / "out" / subdir
+    base.mkdir(parents=True, exist_ok=True)
+    return base / name
+
+
+def _interactive():
+    import os
+    import sys
+
+    if os.environ.get("CI") or os.environ.get("PYTEST_CURRENT_TEST") or os.environ.get(
+            "NRSFM_NO_VIEWER"):
+        return False
+    ipy = sys.modules.get("IPython")
+    return ipy is not None and ipy.get_ipython() is not None
+
+
+def show_recording(path, width=1000, height=700, blueprint=None):
+    """Embed a viewer of the ``.rrd`` at ``path`` when interactive; else print how to open it.
+
+    Embedding needs the ``rerun-notebook`` package and a live notebook front end; in
+    headless / CI runs (``CI``, pytest, or ``NRSFM_NO_VIEWER`` set) nothing is embedded.
+    ``blueprint``: a layout for the viewer (e.g. :func:`make_blueprint`).
+    Returns True when a viewer was embedded.
+    """
+    path = Path(path)
+    if _interactive():
+        try:
+            import rerun as rr
+            from rerun.chunk import RrdReader
+
+            rec = rr.RecordingStream("nrsfm-viewer")
+            rec.notebook_show(width=width, height=height, blueprint=blueprint)
+            rec.send_chunks(RrdReader(path).stream())
+            return True
+        except Exception as exc:  # viewer is optional: never break a run for it
+            print(f"(no embedded viewer: {exc})")
+    print(f"open the recording with: rerun {path}")
+    return False

@@ -1,0 +1,201 @@
+# %% [markdown]
+# # 04 · Single rotation averaging: L1 (Weiszfeld) against the chordal L2 mean
+#
+# After registration (notebook 03) every frame $f$ has up to $K$ samples
+# $\tilde{\mathbf R}^k_f$ of its camera. The paper averages them per frame (Sec. 3.1):
+#
+# * **Eq. (4)** single rotation averaging: $\arg\min_{\mathbf R\in SO(3)}\sum_i d^p(\mathbf R_i,\mathbf R)$;
+#   $p=2$ with the chordal distance $d=\|\mathbf R_i-\mathbf R\|_F$ has a closed form (project
+#   the arithmetic mean onto $SO(3)$), $p=1$ with the geodesic angle is the robust choice
+#   (Hartley et al.): a few far-off samples pull an L2 mean but hardly move an L1 one.
+# * **Eq. (5)** the per-frame problem, $\arg\min_{\mathbf R_f}\sum_{k}d^1(\tilde{\mathbf R}^k_f,\mathbf R_f)$,
+#   solved by **Algorithm 1**: Weiszfeld steps in the tangent space,
+#   $\mathbf v_i=\log(\mathbf R_i\mathbf R^\top)$,
+#   $\Delta\mathbf v=\frac{\sum_i\mathbf v_i/\|\mathbf v_i\|}{\sum_i1/\|\mathbf v_i\|}$,
+#   $\mathbf R\leftarrow\exp(\Delta\mathbf v)\mathbf R$, until $\|\Delta\mathbf v\|<10^{-3}$ (50 iterations at most);
+# * **Eq. (6)** the start: the element-wise median of the samples (the minimiser of the
+#   entry-wise L1 distance), projected onto $SO(3)$ by $\Upsilon(\Psi)=\mathbf U\mathbf D\mathbf V^\top$
+#   (Lee & Civera), rather than the chordal L2 mean.
+#
+# `nrsfm.rotations.average_rotations` is Algorithm 1 vectorised over frames;
+# `nrsfm.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
+
+# %%
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import time
+
+import matplotlib.pyplot as plt
+import numpy as np
+import rerun as rr
+from scipy.spatial.transform import Rotation
+
+import data_tools
+import nrsfm
+from nrsfm.recording import build_recording, output_path, show_recording
+from nrsfm.rotations import (average_rotations, chordal_mean, project_to_so3,
+                             resolve_depth_signs, rotation_angle)
+
+# %% [markdown]
+# ## Projection onto SO(3)
+#
+# $\Upsilon$ returns the nearest rotation (never a reflection): the element-wise median of
+# rotations is in general not a rotation, its projection is.
+
+# %%
+rng = np.random.default_rng(0)
+A = rng.standard_normal((1000, 3, 3))
+Rp = project_to_so3(A)
+assert np.allclose(Rp @ Rp.transpose(0, 2, 1), np.eye(3), atol=1e-12)
+assert np.allclose(np.linalg.det(Rp), 1.0)
+R_true = Rotation.random(5, random_state=3).as_matrix()
+assert np.allclose(project_to_so3(R_true), R_true)
+print("projection: orthonormal, det +1, identity on SO(3)")
+
+# %% [markdown]
+# ## Outliers: the experiment
+#
+# $F=300$ frames with random true rotations, $m=12$ samples each: inliers are the truth
+# rotated by 2 degrees of Gaussian noise per axis, outliers (a fraction of the samples,
+# drawn at random) are uniformly random rotations. Error = mean geodesic angle to the truth.
+
+# %%
+F, m = 300, 12
+truth = Rotation.random(F, random_state=1).as_matrix()
+fractions = [0.0, 0.1, 0.25, 0.4, 0.5]
+table = []
+samples_at = {}
+for frac in fractions:
+    noise = Rotation.from_rotvec(np.deg2rad(2) * rng.standard_normal((m * F, 3))).as_matrix()
+    S = noise.reshape(m, F, 3, 3) @ truth[None]
+    outlier = rng.random((m, F)) < frac
+    S[outlier] = Rotation.random(int(outlier.sum()), random_state=2).as_matrix()
+    samples_at[frac] = (S, outlier)
+    t0 = time.perf_counter()
+    L1, info = average_rotations(S, return_info=True)
+    secs = time.perf_counter() - t0
+    start = average_rotations(S, max_iter=0)
+    L2 = chordal_mean(S)
+
+    def err(R):
+        return float(np.rad2deg(rotation_angle(R, truth)).mean())
+
+    def l1_cost(R):
+        return float(rotation_angle(S, R[None]).sum(axis=0).mean())
+
+    table.append(dict(frac=frac, L1=err(L1), start=err(start), L2=err(L2),
+                      cost_L1=l1_cost(L1), cost_start=l1_cost(start), cost_L2=l1_cost(L2),
+                      iters=info["iterations"].mean(), conv=info["converged"].mean(), secs=secs))
+print(f"{'outliers':>8s} | {'L1 (Alg.1)':>10s} {'median start':>12s} {'chordal L2':>10s} deg | "
+      f"{'L1 cost: Alg.1':>14s} {'start':>7s} {'L2':>7s} | iters  s")
+for r in table:
+    print(f"{r['frac']:8.2f} | {r['L1']:10.3f} {r['start']:12.3f} {r['L2']:10.3f}     | "
+          f"{r['cost_L1']:14.4f} {r['cost_start']:7.4f} {r['cost_L2']:7.4f} | {r['iters']:5.2f} "
+          f"{r['secs']:.3f}")
+
+# %% [markdown]
+# Read the table: without outliers all three agree (L2 is the statistically efficient one
+# for Gaussian noise, here marginally better); with outliers the chordal mean degrades
+# linearly while the L1 average stays at the noise level until close to half the samples are
+# outliers. Algorithm 1 lowers the L1 cost of Eq. (5) from its median start in every case,
+# and converges in a handful of iterations.
+
+# %%
+by = {r["frac"]: r for r in table}
+# measured (deg): 0%: 1.01 / 1.06 / 0.93; 25%: 1.40 / 1.54 / 7.98; 40%: 2.46 / 4.81 / 13.7
+assert by[0.0]["L1"] < 1.5 and by[0.0]["L2"] < 1.5
+for frac in (0.1, 0.25, 0.4):
+    assert by[frac]["L1"] < 0.5 * by[frac]["L2"], frac
+assert by[0.25]["L1"] < 2.0 and by[0.25]["L2"] > 5.0
+for r in table:
+    assert r["cost_L1"] <= r["cost_start"] + 1e-9 and r["cost_L1"] <= r["cost_L2"] + 1e-9
+    assert r["conv"] == 1.0 and r["iters"] < 10
+fig, ax = plt.subplots(figsize=(5, 3.2))
+for key, lab in (("L1", "L1, Algorithm 1"), ("start", "median start (Eq. 6)"),
+                 ("L2", "chordal L2 mean")):
+    ax.plot(fractions, [r[key] for r in table], "o-", label=lab)
+ax.set_xlabel("fraction of outlier samples")
+ax.set_ylabel("mean error (deg)")
+ax.legend(fontsize=8)
+ax.grid(alpha=0.3)
+plt.show()
+
+# %% [markdown]
+# ## In the pipeline
+#
+# On real data the samples are the registered per-triplet rotations of
+# `RotationResult.registered`, with `kept` the samples that passed the $\delta$ filter.
+# `average_rotations(registered, kept)` reproduces `RotationResult.averaged`; the final
+# `rotations` then get their per-frame depth sign from motion smoothness
+# (`resolve_depth_signs`). On the synthetic default sequence all samples agree; on MoCap
+# *pickup* (with `NRSFM_DATA`), the averaging of the filtered samples improves on the
+# reference triplet, and L1 beats L2 once the unfiltered samples are included.
+
+# %%
+seq = data_tools.default_sequence()
+result = nrsfm.reconstruct(seq.W, seq.K)
+rs = result.rotation_stage
+assert np.allclose(average_rotations(rs.registered, rs.kept), rs.averaged, atol=1e-12)
+print(f"synthetic: strategy {rs.strategy}, {rs.n_triplets} triplets, kept "
+      f"{rs.kept.mean():.0%} of the samples, e_R {result.errors(rotations_gt=seq.rotations)['e_R']:.1e}")
+assert result.errors(rotations_gt=seq.rotations)["e_R"] < 1e-5      # measured 8e-8
+
+
+def e_R_of(R, gt):
+    return nrsfm.rotation_error(resolve_depth_signs(R)[0], gt)
+
+
+if os.environ.get("NRSFM_DATA"):
+    pickup = data_tools.load_mocap("pickup")
+    res_p = nrsfm.reconstruct(pickup.W, pickup.K)
+    rp = res_p.rotation_stage
+    assert np.allclose(average_rotations(rp.registered, rp.kept), rp.averaged, atol=1e-12)
+    rows = {"reference triplet only": e_R_of(rp.registered[0], pickup.rotations),
+            "L1, kept samples (pipeline)": e_R_of(average_rotations(rp.registered, rp.kept),
+                                                 pickup.rotations),
+            "L2, kept samples": e_R_of(chordal_mean(rp.registered, rp.kept), pickup.rotations),
+            "L1, all samples": e_R_of(average_rotations(rp.registered), pickup.rotations),
+            "L2, all samples": e_R_of(chordal_mean(rp.registered), pickup.rotations)}
+    print(f"pickup ({rp.strategy}, kept {rp.kept.mean():.0%} of {rp.kept.size} samples):")
+    for k, v in rows.items():
+        print(f"  e_R {v:.4f}  {k}")
+    print(f"  paper: ours {0.1144}, BMM {0.121}")
+    # measured: 0.1181, 0.1073, 0.1074, 0.1167, 0.1203
+    assert rows["L1, kept samples (pipeline)"] < rows["reference triplet only"]
+    assert rows["L1, all samples"] < rows["L2, all samples"]
+    assert rows["L1, kept samples (pipeline)"] < 0.125
+else:
+    print("NRSFM_DATA not set: MoCap part skipped")
+
+# %% [markdown]
+# ## Recording
+#
+# The pipeline run on the synthetic sequence (`/rotations/triplet_k` the registered samples,
+# grey where filtered out, `/rotations/averaged`, `/rotation_samples/*` per frame), plus the
+# outlier experiment at 25 % outliers: per frame, the samples (`/outlier_demo/samples`,
+# red = outlier), the L1 and L2 averages and the truth as axes.
+
+# %%
+rec = build_recording(result, seq, application_id="nrsfm", recording_id="04_rotation_averaging")
+S, outlier = samples_at[0.25]
+n_show = 60
+frames = rr.TimeColumn("demo_frame", sequence=np.arange(n_show))
+vec = S[:, :n_show, 2].transpose(1, 0, 2).reshape(-1, 3)             # viewing direction r3
+col = np.where(outlier[:, :n_show].T.reshape(-1, 1), [[230, 50, 50, 255]], [[150, 150, 150, 255]])
+rec.send_columns("/outlier_demo/samples", indexes=[frames],
+                 columns=rr.Arrows3D.columns(vectors=vec, colors=col.astype(np.uint8))
+                 .partition([m] * n_show))
+for name, R in (("truth", truth), ("L1", average_rotations(S)), ("L2", chordal_mean(S))):
+    rec.send_columns(f"/outlier_demo/{name}", indexes=[frames],
+                     columns=rr.Transform3D.columns(mat3x3=R[:n_show].transpose(0, 2, 1)))
+    rec.log(f"/outlier_demo/{name}", rr.TransformAxes3D(1.2 if name == "truth" else 1.0),
+            static=True)
+path = output_path("04_rotation_averaging.rrd")
+rec.save(path)
+rec.flush()
+rec.disconnect()
+print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+show_recording(path)

@@ -1,0 +1,199 @@
+# %% [markdown]
+# # 06 · The MoCap benchmark beside the paper's tables
+#
+# The 8-sequence MoCap benchmark (Akhter et al.: drink, pickup, yoga, stretch, dance;
+# Torresani et al.: face, walking, shark), with the paper's $K$ per sequence
+# (`data_tools.MOCAP_K`, Table 1). Metrics (Sec. 4, `nrsfm.metrics`): `e3d` (per-frame
+# similarity Procrustes, relative Frobenius error) and `e_R` (Table 4, one global
+# alignment, spectral norm per frame). The published figures are in
+# `$NRSFM_DATA/../paper/tables.json` or `../shared/paper/tables.json`; the copy used here is
+# located below.
+#
+# **What runs.** Every sequence, in this order, unless the time budget
+# (`NRSFM_BENCH_BUDGET` seconds, default 240) is spent: then the remaining ones are listed
+# as *not run* in the table, never dropped silently. Three runs per sequence where possible:
+#
+# * `organic`: the full pipeline, `nrsfm.reconstruct(W, K)` (needs `nrsfm.rotations`);
+# * `bmm`: the baseline of Dai et al. in the same code (`method="bmm"`: best single
+#   triplet, plain nuclear norm), beside the paper's BMM column (note: the paper quotes
+#   BMM's published figures, which use Akhter's metric, `nrsfm.e3d_akhter`, not `e3d`;
+#   METHOD.md, "Metrics");
+# * `organic | GT R`: the shape stage alone on the ground-truth rotations (Akhter sequences,
+#   which have them) -- METHOD.md's check that the ADMM is right;
+# * `PI | GT R`: the pseudo-inverse shape on the ground-truth rotations, which reproduces
+#   the paper's "Ours-PI" row (Table 2) exactly.
+#
+# Face, walking and shark have no camera ground truth (their motion is inside the shape),
+# so only the full pipeline can run on them. The benchmark data is read from
+# `$NRSFM_DATA/mocap` (CI sets it); without it this notebook says so and stops early.
+
+# %%
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import importlib.util
+import json
+import time
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+import data_tools
+import nrsfm
+from nrsfm.recording import output_path, save_recording, show_recording
+
+HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
+    Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()
+FULL = importlib.util.find_spec("nrsfm.rotations") is not None
+BUDGET = float(os.environ.get("NRSFM_BENCH_BUDGET", 240))
+print(f"benchmark data: {HAVE_DATA}; rotation stage available: {FULL}; budget {BUDGET:.0f} s")
+if not HAVE_DATA:
+    print("NRSFM_DATA is not set (or has no mocap/): nothing to run here.")
+    # CI must run the benchmark (as tests/conftest.py requires for the data tests)
+    assert not os.environ.get("CI"), "CI must set NRSFM_DATA to the folder holding mocap/"
+
+# %%
+candidates = [Path(os.environ.get("NRSFM_DATA", "/nonexistent")).parent / "paper" / "tables.json",
+              Path(os.environ.get("NRSFM_DATA", "/nonexistent")) / "tables.json",
+              Path.cwd().parent.parent / "shared" / "paper" / "tables.json"]
+tables_path = next((p for p in candidates if p.is_file()), None)
+tables = json.loads(tables_path.read_text()) if tables_path else None
+print("paper figures:", tables_path)
+PAPER_E3D = (tables or {}).get("mocap_e3d", {}).get("ours", {})
+PAPER_PI = (tables or {}).get("mocap_pseudo_inverse_e3d", {}).get("ours-PI", {})
+PAPER_ER = (tables or {}).get("mocap_rotation_error", {}).get("ours", {})
+PAPER_DAI_R = (tables or {}).get("mocap_e3d_rotation_ablation", {}).get(
+    "ours_shape_with_dai_rotation", {})
+
+# %% [markdown]
+# ## Run
+
+# %%
+rows = {}
+results = {}
+t_start = time.perf_counter()
+for name in (data_tools.MOCAP_NAMES if HAVE_DATA else ()):
+    spent = time.perf_counter() - t_start
+    if spent > BUDGET:
+        rows[name] = dict(status=f"not run: budget {BUDGET:.0f} s spent")
+        continue
+    seq = data_tools.load_mocap(name)
+    row = dict(F=seq.n_frames, P=seq.n_points, K=seq.K, status="run")
+    if FULL:
+        t0 = time.perf_counter()
+        res = nrsfm.reconstruct(seq.W, seq.K)
+        row["t_full"] = time.perf_counter() - t0
+        err = res.errors(seq.shapes, seq.rotations)
+        row["e3d"] = err["e3d"]
+        row["e_R"] = err.get("e_R")
+        results[name] = res
+        t0 = time.perf_counter()
+        row["e3d_bmm"] = nrsfm.reconstruct(seq.W, seq.K, method="bmm").errors(seq.shapes)["e3d"]
+        row["t_full"] += time.perf_counter() - t0
+    if seq.rotations is not None:
+        t0 = time.perf_counter()
+        res_gt = nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations)
+        row["t_gt"] = time.perf_counter() - t0
+        row["e3d_gtR"] = res_gt.errors(seq.shapes)["e3d"]
+        row["pi_gtR"] = nrsfm.reconstruct(seq.W, seq.K, method="pseudo_inverse",
+                                          rotations=seq.rotations).errors(seq.shapes)["e3d"]
+        results.setdefault(name, res_gt)
+    elif not FULL:
+        row["status"] = "not run: no GT rotations and no rotation stage"
+    rows[name] = row
+    print(f"{name:8s} done at {time.perf_counter() - t_start:6.1f} s")
+total = time.perf_counter() - t_start
+
+
+def fmt(v, spec=".4f"):
+    return "-" if v is None else format(v, spec)
+
+
+PAPER_BMM = (tables or {}).get("mocap_e3d", {}).get("BMM", {})
+header = (f"{'seq':8s} {'F':>5s} {'K':>3s} | {'e3d':>7s} {'paper':>7s} | {'bmm':>7s} "
+          f"{'paper':>7s} | {'e_R':>7s} "
+          f"{'paper':>7s} | {'e3d|GT R':>8s} {'PI|GT R':>8s} {'paper PI':>8s} | {'s':>5s}  status")
+print(header)
+print("-" * len(header))
+for name, r in rows.items():
+    secs = (r.get("t_full") or 0) + (r.get("t_gt") or 0)
+    print(f"{name:8s} {r.get('F', 0):5d} {r.get('K', 0):3d} | {fmt(r.get('e3d')):>7s} "
+          f"{fmt(PAPER_E3D.get(name)):>7s} | {fmt(r.get('e3d_bmm')):>7s} "
+          f"{fmt(PAPER_BMM.get(name)):>7s} | {fmt(r.get('e_R')):>7s} "
+          f"{fmt(PAPER_ER.get(name)):>7s} | {fmt(r.get('e3d_gtR')):>8s} "
+          f"{fmt(r.get('pi_gtR')):>8s} {fmt(PAPER_PI.get(name)):>8s} | {secs:5.1f}  "
+          f"{r['status']}")
+print(f"total {total:.1f} s")
+
+# %% [markdown]
+# ## Checks
+#
+# * `PI | GT R` must reproduce the paper's "Ours-PI" row to its printed precision on drink,
+#   pickup, yoga and stretch (METHOD.md: this is how the `e3d` definition was confirmed):
+#   tolerance 5e-4. (Dance: 0.306 here against the paper's 0.301, whose rotations are
+#   estimated rather than the fixed ground-truth camera; reported, not asserted.)
+# * `organic | GT R` must match METHOD.md's reference values for the shape stage on
+#   ground-truth rotations (pickup 0.014, yoga 0.013, stretch 0.014, drink 0.0075-0.008),
+#   to 20 %.
+# * The full pipeline (when present) is compared with the paper's "Ours" column: it must be
+#   within 2x of the published figure on the four Akhter sequences the paper's method
+#   solves well (drink, pickup, yoga, stretch); the others are reported, not asserted.
+
+# %%
+REF_GT_R = {"pickup": 0.014, "yoga": 0.013, "stretch": 0.014, "drink": 0.0079}
+for name, r in rows.items():
+    if r.get("pi_gtR") is not None and name in ("drink", "pickup", "yoga", "stretch"):
+        assert abs(r["pi_gtR"] - PAPER_PI[name]) < 5e-4, (name, r["pi_gtR"], PAPER_PI[name])
+    if r.get("e3d_gtR") is not None and name in REF_GT_R:
+        assert abs(r["e3d_gtR"] - REF_GT_R[name]) < 0.2 * REF_GT_R[name], (name, r["e3d_gtR"])
+    if r.get("e3d") is not None and name in ("drink", "pickup", "yoga", "stretch"):
+        assert r["e3d"] < 2 * PAPER_E3D[name], (name, r["e3d"], PAPER_E3D[name])
+not_run = [n for n, r in rows.items() if r["status"] != "run"]
+print("not run:", not_run or "none")
+if HAVE_DATA and not FULL:
+    print("The rotation stage (nrsfm.rotations) is not in this checkout: the full-pipeline "
+          "column is empty and face/walking/shark could not run.")
+
+# %% [markdown]
+# ## Beside the paper
+
+# %%
+if rows:
+    names = [n for n in rows if rows[n]["status"] == "run"]
+    x = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    series = [("paper: Ours", [PAPER_E3D.get(n) for n in names]),
+              ("paper: Ours shape + Dai R", [PAPER_DAI_R.get(n) for n in names]),
+              ("paper: BMM", [PAPER_BMM.get(n) for n in names]),
+              ("this code: organic", [rows[n].get("e3d") for n in names]),
+              ("this code: bmm", [rows[n].get("e3d_bmm") for n in names]),
+              ("this code: organic | GT R", [rows[n].get("e3d_gtR") for n in names])]
+    w = 0.8 / len(series)
+    for i, (lab, vals) in enumerate(series):
+        v = np.array([np.nan if a is None else a for a in vals], float)
+        if np.isfinite(v).any():
+            ax.bar(x + (i - len(series) / 2 + 0.5) * w, v, w, label=lab)
+    ax.set_yscale("log")
+    ax.set_xticks(x, names)
+    ax.set_ylabel("e3d")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    plt.show()
+
+# %% [markdown]
+# ## Recording of the largest sequence run (drink: 1102 frames)
+#
+# Shapes and skeletons per frame against the ground truth, cameras, rotation samples (full
+# pipeline), ADMM history, report.
+
+# %%
+if results:
+    name = max(results, key=lambda n: results[n].n_frames)
+    t0 = time.perf_counter()
+    rrd = save_recording(results[name], output_path(f"06_mocap_{name}.rrd"),
+                         data_tools.load_mocap(name))
+    print(f"wrote {rrd} ({rrd.stat().st_size / 1e6:.2f} MB, {time.perf_counter() - t0:.1f} s)")
+    show_recording(rrd)

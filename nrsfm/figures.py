@@ -1,0 +1,153 @@
+"""Matplotlib figures of a reconstruction (shapes vs ground truth, cameras, ADMM curves).
+
+Used by ``tools/render_figures.py`` and the notebooks. matplotlib is imported lazily (it is
+a development dependency). Every function draws into a new figure and returns it; the
+display alignment is the one of :mod:`nrsfm.recording` (per-frame similarity Procrustes for
+shapes, one global orthogonal alignment for cameras), computed by
+:func:`nrsfm.recording.recording_content`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["shapes_figure", "cameras_figure", "admm_figure", "singular_values_figure"]
+
+EST = "#ff8c00"
+GT = "#4682ff"
+
+
+def _plt():
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _content(result, sequence, content):
+    if content is not None:
+        return content
+    from .recording import recording_content
+
+    return recording_content(result, sequence)
+
+
+def _equal_3d(ax, pts):
+    c = pts.reshape(-1, 3)
+    mid = (c.max(0) + c.min(0)) / 2
+    r = (c.max(0) - c.min(0)).max() / 2
+    for set_lim, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
+        set_lim(m - r, m + r)
+
+
+def shapes_figure(result, sequence=None, frames=None, content=None, title=None):
+    """Reconstructed shapes (orange dots) over the ground truth (blue rings), a few frames."""
+    plt = _plt()
+    c = _content(result, sequence, content)
+    F = c.n_frames
+    frames = np.linspace(0, F - 1, 4).astype(int) if frames is None else np.asarray(frames)
+    fig = plt.figure(figsize=(3.2 * len(frames), 3.6))
+    e = c.errors_per_frame.get("e3d")
+    for i, f in enumerate(frames):
+        ax = fig.add_subplot(1, len(frames), i + 1, projection="3d")
+        sets = [(c.shapes_est[f], EST, "estimate")]
+        if c.shapes_gt is not None:
+            sets.insert(0, (c.shapes_gt[f], GT, "ground truth"))
+        for pts, col, lab in sets:
+            if lab == "ground truth":           # hollow rings, so an exact fit stays visible
+                ax.scatter(*pts.T, s=42, facecolors="none", edgecolors=col, linewidths=1.2,
+                           label=lab, depthshade=False)
+            else:
+                ax.scatter(*pts.T, s=8, c=col, label=lab, depthshade=False)
+            if c.edges is not None:
+                for a, b in c.edges:
+                    ax.plot(*pts[[a, b]].T, c=col, lw=1)
+        _equal_3d(ax, np.concatenate([s[0] for s in sets]))
+        ax.set_title(f"frame {f}" + (f"  e3d {e[f]:.3g}" if e is not None else ""), fontsize=9)
+        ax.set_xticklabels([]), ax.set_yticklabels([]), ax.set_zticklabels([])
+        if i == 0:
+            ax.legend(fontsize=8, loc="upper left")
+    fig.suptitle(title or f"{result.method}: shapes" + (" (similarity-aligned per frame)"
+                                                           if c.aligned else ""), fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def cameras_figure(result, sequence=None, content=None, title=None):
+    """Camera viewing directions r3_f on the unit sphere, and per-frame e_R if known."""
+    plt = _plt()
+    c = _content(result, sequence, content)
+    has_err = "e_R" in c.errors_per_frame
+    fig = plt.figure(figsize=(9 if has_err else 4.5, 4))
+    ax = fig.add_subplot(1, 2 if has_err else 1, 1, projection="3d")
+    if c.cameras_gt is not None:
+        z = c.cameras_gt[:, 2]
+        ax.plot(*z.T, c=GT, lw=2.5, label="ground truth")
+    z = c.cameras_est[:, 2]
+    ax.plot(*z.T, c=EST, lw=1.2, ls="--", label="estimate")
+    ax.scatter(*z[0], c="k", s=15, label="frame 0")
+    ax.set_title("camera viewing direction r3 per frame", fontsize=9)
+    ax.legend(fontsize=8)
+    lim = (-1, 1)
+    ax.set_xlim(lim), ax.set_ylim(lim), ax.set_zlim(lim)
+    if has_err:
+        ax2 = fig.add_subplot(1, 2, 2)
+        ax2.plot(c.errors_per_frame["e_R"], c=EST)
+        ax2.set_xlabel("frame")
+        ax2.set_ylabel("e_R per frame")
+        ax2.set_title(f"rotation error, mean {c.errors['e_R']:.3g}", fontsize=9)
+        ax2.grid(alpha=0.3)
+    fig.suptitle(title or f"{result.method}: cameras (globally aligned)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def admm_figure(results, labels=None, title=None):
+    """ADMM history (cost, data term, residual, rho) of one or several runs."""
+    plt = _plt()
+    if not isinstance(results, (list, tuple)):
+        results = [results]
+    labels = labels or [r.method for r in results]
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.3))
+    floor = np.inf
+    for res, lab in zip(results, labels):
+        st = getattr(res, "shape_stage", res)
+        hist = getattr(st, "history", None) or {}
+        for ax, key in zip(axes, ("cost", "data_term", "residual", "rho")):
+            if key in hist:
+                ax.semilogy(np.asarray(hist[key]), label=lab)
+        dt = np.asarray(hist.get("data_term", []), float)[1:]
+        if (dt > 0).any():
+            floor = min(floor, dt[dt > 0].min())
+    if np.isfinite(floor):      # the start (X_init) fits W exactly: do not let ~1e-30 rule
+        axes[1].set_ylim(bottom=floor / 10)
+    for ax, key in zip(axes, ("cost (Eq. 7 / 8 / 10 by prior)", "data term 1/2||W-RX||^2",
+                              "residual max|X# - Phi(X)|", "penalty rho")):
+        ax.set_title(key, fontsize=9)
+        ax.set_xlabel("ADMM iteration")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title or "shape stage: ADMM history", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def singular_values_figure(values, labels=None, title=None, mark=None):
+    """Singular value spectra (log scale); ``mark``: draw a line after that many values."""
+    plt = _plt()
+    if isinstance(values, np.ndarray) and values.ndim == 1:
+        values = [values]
+    labels = labels or [None] * len(values)
+    fig, ax = plt.subplots(figsize=(6, 3.3))
+    for v, lab in zip(values, labels):
+        v = np.asarray(v, float)
+        ax.semilogy(np.arange(1, v.size + 1), np.maximum(v, 1e-17), "o-", ms=3, label=lab)
+    if mark:
+        ax.axvline(mark + 0.5, c="gray", ls=":")
+    ax.set_xlabel("index i")
+    ax.set_ylabel("sigma_i")
+    ax.grid(alpha=0.3)
+    if any(labels):
+        ax.legend(fontsize=8)
+    ax.set_title(title or "singular values", fontsize=10)
+    fig.tight_layout()
+    return fig

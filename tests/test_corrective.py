@@ -1,0 +1,100 @@
+"""Corrective triplets (Dai's constraints, relaxation, refinement) on small synthetic data."""
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+import data_tools
+from nrsfm import corrective as C
+from nrsfm.measurement import factorize
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    with threadpool_limits(limits=1):
+        yield
+
+
+def _M(K, motion="smooth", noise=0.0, seed=0, F=50, P=30):
+    seq = data_tools.make_synthetic(F=F, P=P, K=K, motion=motion, noise=noise, seed=seed)
+    return factorize(seq.W, K).M_hat, seq
+
+
+def test_constraint_matrix_matches_definition():
+    rng = np.random.default_rng(0)
+    K, F = 2, 7
+    M = rng.standard_normal((2 * F, 3 * K))
+    Q = rng.standard_normal((3 * K, 3 * K))
+    Q = Q + Q.T
+    A = C.constraint_matrix(M)
+    got = A @ Q[C.vech_index(3 * K)]
+    m1, m2 = M[0::2], M[1::2]
+    want = np.empty(2 * F)
+    want[0::2] = np.einsum("fi,ij,fj->f", m1, Q, m1) - np.einsum("fi,ij,fj->f", m2, Q, m2)
+    want[1::2] = np.einsum("fi,ij,fj->f", m1, Q, m2)
+    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(C.gram_from_vech(Q[C.vech_index(3 * K)], 3 * K), Q)
+
+
+@pytest.mark.parametrize("K", [1, 2, 3])
+def test_solution_space_dimension_noise_free(K):
+    M, _ = _M(K)
+    A = C.constraint_matrix(M)
+    basis, sv = C.solution_space(A, K)
+    d = 2 * K * K - K
+    assert basis.shape == (3 * K * (3 * K + 1) // 2, d)
+    np.testing.assert_allclose(basis.T @ basis, np.eye(d), atol=1e-10)
+    # A clear gap: the basis is (numerically) in the null space of A.
+    assert np.linalg.norm(A @ basis) < 1e-5 * np.linalg.norm(A)
+    assert sv[-d - 1] > 1e3 * sv[-d]
+
+
+def test_relaxed_gram_admm_matches_cvxpy():
+    M, _ = _M(2, noise=0.01)
+    basis, _ = C.solution_space(C.constraint_matrix(M), 2)
+    Qa = C.relaxed_gram(basis, 2, solver="admm", tol=1e-8)
+    Qc = C.relaxed_gram(basis, 2, solver="cvxpy")
+    nuc = lambda Q: np.abs(np.linalg.eigvalsh(Q)).sum()
+    assert abs(nuc(Qa) - nuc(Qc)) < 1e-4 * nuc(Qc)
+
+
+def test_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    M, _ = _M(2, noise=0.02)
+    G = rng.standard_normal((6, 3))
+    w = rng.uniform(0.5, 1.5, M.shape[0] // 2)
+    r, J = C.triplet_residuals(G, M, w, jac=True)
+    h = 1e-6
+    Jn = np.empty_like(J)
+    for i in range(G.size):
+        d = np.zeros(G.size)
+        d[i] = h
+        Jn[:, i] = (C.triplet_residuals(G + d.reshape(G.shape), M, w)
+                    - C.triplet_residuals(G - d.reshape(G.shape), M, w)) / (2 * h)
+    np.testing.assert_allclose(J, Jn, rtol=1e-5, atol=1e-6)
+    assert C.triplet_cost(G, M, w) == pytest.approx(float(r @ r))
+
+
+@pytest.mark.parametrize("K", [1, 2, 4])
+def test_corrective_triplets_exact_noise_free(K):
+    M, _ = _M(K, F=40, P=3 * K + 12)
+    res = C.corrective_triplets(M, K, seed=0)
+    assert res.G.shape[1:] == (3 * K, 3)
+    assert res.costs[0] < 1e-16
+    assert np.all(np.diff(res.costs) >= 0)
+
+
+def test_lm_and_lbfgs_reach_same_minimum_from_the_same_start():
+    M, _ = _M(2, noise=0.01, seed=3)
+    G0 = C.corrective_triplets(M, 2, seed=0).G[0] + 0.01
+    G1, i1 = C.refine_triplet(G0, M, method="lm")
+    G2, i2 = C.refine_triplet(G0, M, method="lbfgs")
+    assert i1["cost"] <= i2["cost"] * (1 + 1e-6) + 1e-12
+
+
+def test_corrective_triplets_deterministic():
+    M, _ = _M(3, noise=0.02, seed=5)
+    a = C.corrective_triplets(M, 3, seed=4)
+    b = C.corrective_triplets(M, 3, seed=4)
+    np.testing.assert_array_equal(a.G, b.G)
+    np.testing.assert_array_equal(a.costs, b.costs)

@@ -1,0 +1,270 @@
+"""Rerun recordings: write .rrd files from small runs, read them back with rerun's chunk reader."""
+
+import dataclasses
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+import data_tools  # noqa: E402
+import nrsfm  # noqa: E402
+from nrsfm.metrics import similarity_align  # noqa: E402
+from nrsfm.recording import (build_recording, camera_alignment, recording_content,  # noqa: E402
+                             save_recording)
+
+
+@pytest.fixture(scope="module")
+def seq():
+    return data_tools.make_synthetic(F=24, P=15, K=2, motion="smooth", seed=3)
+
+
+@pytest.fixture(scope="module")
+def pinv_result(seq):
+    return nrsfm.reconstruct(seq.W, seq.K, method="pseudo_inverse", rotations=seq.rotations)
+
+
+def _stand_in_stages(result, seq, n_iter=9, seed=0):
+    """Objects shaped like RotationResult / ShapeResult, with known arrays."""
+    rng = np.random.default_rng(seed)
+    K, F = result.K, result.n_frames
+    from scipy.spatial.transform import Rotation
+
+    noise = Rotation.from_rotvec(0.02 * rng.standard_normal((K * F, 3))).as_matrix()
+    registered = noise.reshape(K, F, 3, 3) @ seq.rotations[None]
+    kept = rng.random((K, F)) > 0.3
+    kept[0] = True
+    rotation_stage = SimpleNamespace(
+        rotations=seq.rotations, registered=registered, per_triplet=registered,
+        coefficients=rng.standard_normal((K, F)), kept=kept, averaged=seq.rotations,
+        strategy="stand-in")
+    history = {k: rng.random(n_iter) + 0.1 for k in ("cost", "data_term", "residual", "rho")}
+    shape_stage = SimpleNamespace(
+        shapes=result.shapes / result.scale, X_init=result.X_init / result.scale,
+        X_init_singular_values=np.linspace(3, 0.1, F), theta=np.linspace(0.01, 1, F),
+        history=history, n_iter=n_iter, converged=True)
+    return dataclasses.replace(result, rotation_stage=rotation_stage, shape_stage=shape_stage)
+
+
+def read_rrd(path):
+    """entity path -> {'static': [record batches], 'temporal': [record batches]}."""
+    out = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        d = out.setdefault(chunk.entity_path, {"static": [], "temporal": []})
+        d["static" if chunk.is_static else "temporal"].append(chunk.to_record_batch())
+    return out
+
+
+def column(batches, name, index=None):
+    """Concatenate a component column over batches, sorted by ``index`` when given."""
+    vals, idx = [], []
+    for b in batches:
+        if name in b.schema.names:
+            vals += b.column(name).to_pylist()
+            if index:
+                idx += b.column(index).to_pylist()
+    if index:
+        order = np.argsort(idx, kind="stable")
+        return [vals[i] for i in order], np.asarray(idx)[order]
+    return vals
+
+
+def test_pseudo_inverse_recording(tmp_path, seq, pinv_result):
+    path = save_recording(pinv_result, tmp_path / "sub" / "pi.rrd", seq, recording_id="t1")
+    assert path.is_file() and path.stat().st_size > 0
+    reader = RrdReader(path)
+    assert [s.recording_id for s in reader.recordings()] == ["t1"]
+    assert len(reader.blueprints()) == 1
+    data = read_rrd(path)
+    F, P = seq.n_frames, seq.n_points
+    for p in ("/world/shapes/estimate", "/world/shapes/ground_truth", "/world/cameras/estimate",
+              "/world/cameras/ground_truth", "/image/measured", "/image/reprojected",
+              "/errors/e3d", "/errors/e_R"):
+        rows = sum(b.num_rows for b in data[p]["temporal"])
+        assert rows == F, p
+        assert all("frame" in b.schema.names for b in data[p]["temporal"])
+    for p in ("/singular_values/W", "/singular_values/X_init", "/run/report",
+              "/world/trajectory/estimate", "/world/trajectory/ground_truth"):
+        assert data[p]["static"] and not data[p]["temporal"], p
+    # no stages ran: nothing of theirs is logged
+    assert not any(p.startswith(("/admm", "/rotations", "/rotation_samples")) for p in data)
+
+    # values: ground truth in its world frame, estimate similarity-aligned onto it
+    gt, frames = column(data["/world/shapes/ground_truth"]["temporal"], "Points3D:positions",
+                        "frame")
+    assert np.array_equal(frames, np.arange(F))
+    gt = np.asarray(gt)
+    world = seq.world_shapes - seq.world_shapes.mean(axis=2, keepdims=True)
+    np.testing.assert_allclose(gt, world.transpose(0, 2, 1), atol=1e-5)
+    est = np.asarray(column(data["/world/shapes/estimate"]["temporal"], "Points3D:positions",
+                            "frame")[0])
+    np.testing.assert_allclose(est, similarity_align(pinv_result.shapes, world)
+                               .transpose(0, 2, 1), atol=1e-5)
+    assert est.shape == (F, P, 3)
+    e3d = np.asarray(column(data["/errors/e3d"]["temporal"], "Scalars:scalars", "frame")[0])
+    np.testing.assert_allclose(e3d.ravel(), nrsfm.e3d(pinv_result.shapes, seq.shapes,
+                                                      per_frame=True), rtol=1e-12)
+    sv = column(data["/singular_values/W"]["static"], "BarChart:values")
+    assert sv  # tensor data, checked in content test below
+    text = column(data["/run/report"]["static"], "TextDocument:text")[0][0]
+    assert "pseudo_inverse" in text and "e3d" in text
+
+
+def test_stage_recording(tmp_path, seq, pinv_result):
+    result = _stand_in_stages(pinv_result, seq)
+    path = save_recording(result, tmp_path / "stages.rrd", seq)
+    data = read_rrd(path)
+    K, F = result.K, result.n_frames
+    hist = result.shape_stage.history
+    for key in ("cost", "data_term", "residual", "rho"):
+        vals, it = column(data[f"/admm/{key}"]["temporal"], "Scalars:scalars", "admm_iteration")
+        assert np.array_equal(it, np.arange(len(hist[key])))
+        assert np.array_equal(np.ravel(vals), hist[key])          # float64, exact
+    vals = column(data["/admm_log10/rho"]["temporal"], "Scalars:scalars", "admm_iteration")[0]
+    np.testing.assert_allclose(np.ravel(vals), np.log10(hist["rho"]))
+    for k in range(1, K + 1):
+        kept = column(data[f"/rotation_samples/kept/triplet_{k}"]["temporal"],
+                      "Scalars:scalars", "frame")[0]
+        assert np.array_equal(np.ravel(kept), result.rotation_stage.kept[k - 1].astype(float))
+        coeff = column(data[f"/rotation_samples/coefficient/triplet_{k}"]["temporal"],
+                       "Scalars:scalars", "frame")[0]
+        assert np.array_equal(np.ravel(coeff), result.rotation_stage.coefficients[k - 1])
+        arrows = data[f"/rotations/triplet_{k}"]["temporal"]
+        assert sum(b.num_rows for b in arrows) == F
+        vecs, _ = column(arrows, "Arrows3D:vectors", "frame")
+        Q = camera_alignment(result.rotations, seq.rotations)
+        expect = result.rotation_stage.registered[k - 1][:, :2] @ Q
+        np.testing.assert_allclose(np.asarray(vecs)[:, :2], expect, atol=1e-6)
+    assert sum(b.num_rows for b in data["/rotations/averaged"]["temporal"]) == F
+    for name in ("W", "X_init", "theta"):
+        assert data[f"/singular_values/{name}"]["static"]
+
+
+def test_content_values(seq, pinv_result):
+    result = _stand_in_stages(pinv_result, seq)
+    c = recording_content(result, seq)
+    assert np.array_equal(c.singular_values["W"], result.factorization.singular_values)
+    assert np.array_equal(c.singular_values["X_init"],
+                          result.shape_stage.X_init_singular_values)
+    assert np.array_equal(c.singular_values["theta"], result.shape_stage.theta)
+    # cameras align exactly when the estimate is the ground truth up to a global rotation
+    np.testing.assert_allclose(c.cameras_est, seq.rotations, atol=1e-10)
+    assert c.errors["e_R"] < 1e-10
+    # removing the stages: content degrades gracefully
+    c0 = recording_content(pinv_result, None)
+    assert c0.shapes_gt is None and c0.cameras_gt is None and not c0.admm
+    assert c0.triplet_rotations is None and not c0.errors_per_frame
+    np.testing.assert_allclose(c0.singular_values["X_init"], np.linalg.svd(
+        (pinv_result.X_init / pinv_result.scale).reshape(seq.n_frames, -1), compute_uv=False))
+
+
+def test_no_ground_truth_and_skeleton(tmp_path, seq, pinv_result):
+    seq_e = dataclasses.replace(seq, rotations=None, world_shapes=None,
+                                edges=np.array([[0, 1], [1, 2], [2, 3]]))
+    path = save_recording(pinv_result, tmp_path / "nogt.rrd", seq_e)
+    data = read_rrd(path)
+    assert "/world/cameras/ground_truth" not in data and "/errors/e_R" not in data
+    strips = data["/world/shapes/ground_truth/skeleton"]["temporal"]
+    assert sum(b.num_rows for b in strips) == seq.n_frames
+    s = column(strips, "LineStrips3D:strips", "frame")[0]
+    assert len(s[0]) == 3 and len(s[0][0]) == 2
+    # nothing at all
+    data = read_rrd(save_recording(pinv_result, tmp_path / "bare.rrd"))
+    assert "/world/shapes/ground_truth" not in data
+    assert sum(b.num_rows for b in data["/world/shapes/estimate"]["temporal"]) == seq.n_frames
+
+
+def test_build_recording_buffers_then_saves(tmp_path, seq, pinv_result):
+    rec = build_recording(pinv_result, seq, application_id="nrsfm-test", recording_id="b1")
+    path = tmp_path / "late.rrd"
+    rec.save(path)
+    rec.flush()
+    rec.disconnect()
+    data = read_rrd(path)
+    assert "/world/shapes/estimate" in data and "/run/report" in data
+
+
+def test_frame_mismatch_raises(seq, pinv_result):
+    short = data_tools.make_synthetic(F=10, P=15, K=2, seed=1)
+    with pytest.raises(ValueError, match="frames"):
+        recording_content(pinv_result, short)
+
+
+def test_real_shape_stage(tmp_path, seq):
+    """Rotations given: the real ADMM shape stage's history ends up on its timeline."""
+    res = nrsfm.reconstruct(seq.W, seq.K, method="organic", rotations=seq.rotations)
+    assert res.rotation_stage is None and res.shape_stage is not None
+    data = read_rrd(save_recording(res, tmp_path / "shape.rrd", seq))
+    for key in ("cost", "data_term", "residual", "rho"):
+        vals, it = column(data[f"/admm/{key}"]["temporal"], "Scalars:scalars", "admm_iteration")
+        assert np.array_equal(np.ravel(vals), np.asarray(res.shape_stage.history[key], float))
+        assert len(it) == len(res.shape_stage.history["cost"])
+    theta = column(data["/singular_values/theta"]["static"], "BarChart:values")
+    assert theta
+
+
+def test_real_stages_if_available(tmp_path, seq):
+    """The full pipeline when the rotation stage exists (skipped until it lands)."""
+    try:
+        res = nrsfm.reconstruct(seq.W, seq.K, method="organic")
+    except (ImportError, NotImplementedError, AttributeError) as exc:
+        pytest.skip(f"pipeline stages not available yet: {exc}")
+    data = read_rrd(save_recording(res, tmp_path / "full.rrd", seq))
+    F = seq.n_frames
+    assert sum(b.num_rows for b in data["/world/shapes/estimate"]["temporal"]) == F
+    n = len(res.shape_stage.history["cost"])
+    assert sum(b.num_rows for b in data["/admm/cost"]["temporal"]) == n
+    if getattr(res.rotation_stage, "registered", None) is not None:
+        K = np.asarray(res.rotation_stage.registered).shape[0]
+        for k in range(1, K + 1):
+            assert sum(b.num_rows for b in data[f"/rotations/triplet_{k}"]["temporal"]) == F
+            kept = column(data[f"/rotation_samples/kept/triplet_{k}"]["temporal"],
+                          "Scalars:scalars", "frame")[0]
+            assert np.array_equal(np.ravel(kept),
+                                  np.asarray(res.rotation_stage.kept)[k - 1].astype(float))
+            dist = column(data[f"/rotation_samples/distance/triplet_{k}"]["temporal"],
+                          "Scalars:scalars", "frame")[0]
+            expect = np.linalg.norm(res.rotation_stage.registered[k - 1]
+                                    - res.rotation_stage.averaged, axis=(1, 2))
+            np.testing.assert_allclose(np.ravel(dist), expect, atol=1e-9)
+        flips = column(data["/rotation_samples/sign_from_smoothness"]["temporal"],
+                       "Scalars:scalars", "frame")[0]
+        assert np.array_equal(np.ravel(flips),
+                              np.asarray(res.rotation_stage.sign_from_smoothness, float))
+
+
+def test_notebooks_match_their_sources():
+    """The committed .ipynb files are regenerated from notebooks/src/*.py (outputs stripped)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("jupytext")
+    root = Path(__file__).resolve().parents[1]
+    script = root / "notebooks" / "build_notebooks.py"
+    if not script.is_file():
+        pytest.skip("no notebooks in this checkout")
+    out = subprocess.run([sys.executable, str(script), "--check"], capture_output=True,
+                         text=True, cwd=root)
+    assert out.returncode == 0, out.stdout + out.stderr
+    for nb in (root / "notebooks").glob("[0-9][0-9]_*.ipynb"):
+        assert '"outputs": []' in nb.read_text() or '"outputs"' not in nb.read_text()
+
+
+def test_render_figures_script(tmp_path):
+    """tools/render_figures.py writes the synthetic PNGs (MoCap ones only with NRSFM_DATA)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("matplotlib")
+    script = Path(__file__).resolve().parents[1] / "tools" / "render_figures.py"
+    out = subprocess.run([sys.executable, str(script), "--out", str(tmp_path), "--no-mocap"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    names = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert names == ["synthetic_admm.png", "synthetic_cameras.png", "synthetic_shapes.png",
+                     "synthetic_singular_values.png"]
+    assert all((tmp_path / n).stat().st_size > 10_000 for n in names)

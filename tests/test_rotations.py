@@ -1,0 +1,159 @@
+"""Rotation stage: lifting, registration, filtering, L1 averaging, estimate_rotations."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from threadpoolctl import threadpool_limits
+
+import data_tools
+from nrsfm import rotation_error
+from nrsfm.measurement import factorize
+from nrsfm import rotations as RT
+
+FLIP = np.diag([-1.0, -1.0, 1.0])
+MIRROR = np.diag([1.0, 1.0, -1.0])
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    with threadpool_limits(limits=1):
+        yield
+
+
+def _seq(K, motion, noise=0.0, seed=0, F=40):
+    seq = data_tools.make_synthetic(F=F, P=3 * K + 15, K=K, motion=motion, noise=noise,
+                                    seed=seed)
+    return seq, factorize(seq.W, K).M_hat
+
+
+@pytest.mark.parametrize("motion", ["smooth", "fast"])
+@pytest.mark.parametrize("K", [1, 2, 3, 4])
+def test_noise_free_rotations_exact(K, motion):
+    seq, M = _seq(K, motion, seed=K)
+    for strategy in ("organic", "bmm"):
+        res = RT.estimate_rotations(M, K, strategy=strategy, seed=0)
+        assert res.rotations.shape == (40, 3, 3)
+        assert np.allclose(np.linalg.det(res.rotations), 1.0)
+        assert rotation_error(res.rotations, seq.rotations) < 1e-6, strategy
+
+
+def test_random_motion_exact_up_to_depth_reversal():
+    seq, M = _seq(2, "random", seed=11)
+    res = RT.estimate_rotations(M, 2, strategy="organic", seed=0)
+    R, Rgt = res.rotations, seq.rotations
+    # one global orthogonal alignment from the third rows (unchanged by a depth reversal)
+    U, _, Vt = np.linalg.svd(np.einsum("fi,fj->ij", R[:, 2], Rgt[:, 2]))
+    Q = U @ Vt
+    A = R[:, :2] @ Q
+    err = np.minimum(np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)),
+                     np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2)))
+    assert err.max() < 1e-6
+    assert res.sign_from_smoothness.dtype == bool
+    assert res.sign_from_smoothness.any()
+    # with the reversal undone per frame, the sequence is exact
+    sign = np.where(np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)) <
+                    np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2)), 1.0, -1.0)
+    Rfix = np.where(sign[:, None, None] > 0, R, FLIP @ R)
+    assert rotation_error(Rfix, Rgt) < 1e-6
+
+
+def test_l1_average_robust_to_outliers():
+    rng = np.random.default_rng(0)
+    F, m = 30, 9
+    truth = Rotation.random(F, random_state=1)
+    noise = Rotation.from_rotvec(0.01 * rng.standard_normal((m, F, 3)).reshape(-1, 3))
+    samples = (noise * Rotation.concatenate([truth] * m)).as_matrix().reshape(m, F, 3, 3)
+    samples[:3] = Rotation.random(3 * F, random_state=2).as_matrix().reshape(3, F, 3, 3)
+    l1 = RT.average_rotations(samples)
+    l2 = RT.chordal_mean(samples)
+    e1 = RT.rotation_angle(l1, truth.as_matrix())
+    e2 = RT.rotation_angle(l2, truth.as_matrix())
+    assert e1.mean() < 0.02
+    assert e1.mean() < 0.2 * e2.mean()
+
+
+def test_average_weighted_mask_and_empty_frames():
+    R = Rotation.random(4, random_state=3).as_matrix()
+    samples = np.stack([R, R])
+    mask = np.ones((2, 4), bool)
+    mask[:, 2] = False
+    out, info = RT.average_rotations(samples, mask, return_info=True)
+    assert np.all(np.isfinite(out))
+    assert info["empty"].tolist() == [False, False, True, False]
+    np.testing.assert_allclose(out[[0, 1, 3]], R[[0, 1, 3]], atol=1e-12)
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_registration_recovers_global_rotation(mirrored):
+    rng = np.random.default_rng(4)
+    F = 50
+    R_ref = data_tools.camera_rotations(F, "smooth", rng)
+    Rg = Rotation.random(random_state=5).as_matrix()
+    flips = rng.random(F) < 0.3
+    R_k = R_ref @ Rg
+    R_k = np.where(flips[:, None, None], FLIP @ R_k, R_k)
+    if mirrored:                      # the lift of the mirrored 2 x 3 blocks
+        R_k = MIRROR @ R_k @ MIRROR
+    reg, R_reg, got_flips, got_mirror, cost = RT.register_rotations(R_ref, R_k)
+    np.testing.assert_allclose(reg, R_ref, atol=1e-10)
+    # The mirrored lift equals the unmirrored one with every frame reversed and another
+    # R_reg (diag(-1,-1,1) diag(1,1,-1) = -I), so the flips come out complemented.
+    np.testing.assert_array_equal(got_flips, flips ^ (mirrored and not got_mirror))
+    # plain SO(3) registration (Eq. 4 without flips) cannot do this
+    plain = RT._procrustes_so3(np.einsum("fki,fkj->ij", R_k, R_ref).T)
+    assert np.linalg.norm(R_k @ plain.T - R_ref, axis=(1, 2)).mean() > 0.1
+    assert cost < 1e-18
+    assert np.isclose(np.linalg.det(R_reg), 1.0)
+
+
+def test_filter_metrics():
+    R = Rotation.random(5, random_state=6).as_matrix()
+    small = Rotation.from_rotvec([0, 0, 0.04]).as_matrix()
+    reg = np.stack([R, small @ R])
+    kept_a, d_a = RT.filter_rotations(reg, R, 0.05, "angle")
+    kept_c, d_c = RT.filter_rotations(reg, R, 0.05, "chordal")
+    assert kept_a.all()
+    np.testing.assert_allclose(d_a[1], 0.04, atol=1e-12)
+    np.testing.assert_allclose(d_c[1], 2 * np.sqrt(2) * np.sin(0.02), atol=1e-12)
+    assert not kept_c[1].any()        # chordal 0.0566 > 0.05
+
+
+def test_no_nan_when_a_coefficient_is_zero():
+    seq, M = _seq(2, "smooth", noise=0.01, seed=7)
+    M = M.copy()
+    M[10:12] = 0.0                    # frame 5: M_f G = 0 for every triplet
+    G = np.random.default_rng(0).standard_normal((3, 6, 3))
+    G[1] = 0.0
+    R, coef, valid = RT.rotations_from_triplets(M, G)
+    assert np.all(np.isfinite(R))
+    assert not valid[:, 5].any() and not valid[1].any()
+    assert np.all(coef[:, 5] == 0)
+    for strategy in ("organic", "bmm", "literal"):
+        res = RT.estimate_rotations(M, 2, strategy=strategy, seed=0)
+        assert np.all(np.isfinite(res.rotations))
+        assert np.allclose(np.linalg.det(res.rotations), 1.0)
+
+
+def test_deterministic_under_seed_and_result_fields():
+    seq, M = _seq(3, "smooth", noise=0.03, seed=9)
+    a = RT.estimate_rotations(M, 3, seed=2)
+    b = RT.estimate_rotations(M, 3, seed=2)
+    np.testing.assert_array_equal(a.rotations, b.rotations)
+    F = 40
+    assert a.G.shape == (3, 9, 3)
+    assert a.per_triplet.shape == (3, F, 3, 3) and a.registered.shape == (3, F, 3, 3)
+    assert a.coefficients.shape == (3, F) and a.kept.shape == (3, F)
+    assert a.registration.shape == (3, 3, 3)
+    np.testing.assert_array_equal(a.registration[0], np.eye(3))
+    assert a.averaged.shape == (F, 3, 3) and a.sign_from_smoothness.shape == (F,)
+    assert a.strategy == "organic" and isinstance(a.params, dict)
+    assert {"registration", "filtering", "averaging"} <= set(a.timings)
+    assert rotation_error(a.rotations, seq.rotations) < 0.2   # 3% noise, K = 3: loose
+
+
+def test_unknown_strategy_and_option():
+    _, M = _seq(1, "smooth")
+    with pytest.raises(ValueError, match="strategy"):
+        RT.estimate_rotations(M, 1, strategy="nope")
+    with pytest.raises(ValueError, match="option"):
+        RT.estimate_rotations(M, 1, bogus=1)

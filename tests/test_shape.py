@@ -1,0 +1,194 @@
+"""Tests of the shape stage (nrsfm.shape): PSVT, weights, ADMM of Eq. (10)-(13)."""
+
+import numpy as np
+import pytest
+
+import data_tools
+import nrsfm
+from nrsfm.metrics import e3d
+from nrsfm.scale import normalization_scale
+from nrsfm.shape import (PRIORS, ShapeResult, optimize_shapes, phi, phi_inv, psvt,
+                         pseudo_inverse_shapes, shape_weights, truncate_rank)
+
+
+@pytest.fixture(scope="module")
+def seq():
+    return data_tools.make_synthetic(F=60, P=20, K=3, motion="random", seed=1)
+
+
+def _partial_objective(P, Q, N, tau):
+    s = np.linalg.svd(P, compute_uv=False)
+    return float(np.sum(tau[N:] * s[N:]) + 0.5 * np.sum((P - Q) ** 2))
+
+
+# ------------------------------------------------------------------ PSVT
+@pytest.mark.parametrize("N", [0, 1, 2])
+def test_psvt_is_the_proximal_point(N):
+    """P_{N,tau}[Q] beats random perturbations and a local optimiser on a tiny matrix."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(N)
+    Q = rng.standard_normal((5, 4))
+    s = np.linalg.svd(Q, compute_uv=False)
+    tau = np.full(4, 0.6 * s[N])                    # thresholds some, keeps others
+    P = psvt(Q, N, tau)
+    best = _partial_objective(P, Q, N, tau)
+    for _ in range(300):
+        E = rng.standard_normal(Q.shape) * rng.choice([1e-3, 1e-2, 1e-1])
+        assert _partial_objective(P + E, Q, N, tau) >= best - 1e-12
+    for start in (Q, np.zeros_like(Q), rng.standard_normal(Q.shape)):
+        res = minimize(lambda p: _partial_objective(p.reshape(Q.shape), Q, N, tau),
+                       start.ravel(), method="Powell", options=dict(xtol=1e-9, ftol=1e-12,
+                                                                    maxfev=40000))
+        assert res.fun >= best - 1e-7
+
+
+def test_psvt_keeps_leading_and_soft_thresholds_rest():
+    rng = np.random.default_rng(0)
+    U, _ = np.linalg.qr(rng.standard_normal((6, 4)))
+    V, _ = np.linalg.qr(rng.standard_normal((4, 4)))
+    sig = np.array([5.0, 3.0, 1.0, 0.2])
+    Q = (U * sig) @ V.T
+    P, s_new = psvt(Q, 1, 0.5, return_singular_values=True)
+    np.testing.assert_allclose(s_new, [5.0, 2.5, 0.5, 0.0], atol=1e-12)
+    np.testing.assert_allclose(P, (U * [5.0, 2.5, 0.5, 0.0]) @ V.T, atol=1e-12)
+    # per-singular-value tau; N = 0 is plain (weighted) singular value thresholding
+    _, s0 = psvt(Q, 0, [1.0, 1.0, 0.5, 0.5], return_singular_values=True)
+    np.testing.assert_allclose(s0, [4.0, 2.0, 0.5, 0.0], atol=1e-12)
+    # tau = 0 and N >= rank give Q back
+    np.testing.assert_allclose(psvt(Q, 0, 0.0), Q, atol=1e-12)
+    np.testing.assert_allclose(psvt(Q, 4, 10.0), Q, atol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs", [dict(Q=np.ones(3), N=1, tau=0.1),
+                                    dict(Q=np.ones((3, 3)), N=-1, tau=0.1),
+                                    dict(Q=np.ones((3, 3)), N=1.5, tau=0.1),
+                                    dict(Q=np.ones((3, 3)), N=1, tau=-0.1),
+                                    dict(Q=np.ones((3, 3)), N=1, tau=[0.1, 0.2]),
+                                    dict(Q=np.full((3, 3), np.nan), N=1, tau=0.1)])
+def test_psvt_bad_input(kwargs):
+    with pytest.raises(ValueError):
+        psvt(**kwargs)
+
+
+def test_shape_weights_eq9():
+    sigma = np.array([4.0, 1.0, 0.25, 0.0])
+    theta = shape_weights(sigma)
+    xi = 5e-3 * 2.0
+    np.testing.assert_allclose(theta, xi / (sigma + 1e-6))
+    assert np.all(np.diff(theta) > 0)                   # smaller sigma, larger weight
+    np.testing.assert_allclose(shape_weights(sigma, xi=1.0, gamma=0.5), 1.0 / (sigma + 0.5))
+    for bad in (dict(sigma=[]), dict(sigma=[1.0, -1.0]), dict(sigma=[1.0], gamma=0.0),
+                dict(sigma=[0.0, 0.0]), dict(sigma=[1.0], xi=-1.0)):
+        with pytest.raises(ValueError):
+            shape_weights(**bad)
+
+
+# ------------------------------------------------------------------ ADMM
+def test_admm_converges_and_recovers_low_rank_shape(seq):
+    W = seq.W / normalization_scale(seq.W)
+    res = optimize_shapes(W, seq.rotations, seq.K)
+    assert isinstance(res, ShapeResult)
+    assert res.converged and res.history["residual"][-1] < res.params["eps"]
+    assert res.prior == "organic" and res.N == 1
+    assert e3d(res.X_init, seq.shapes) > 0.3            # the planar start is poor
+    assert e3d(res.shapes, seq.shapes) < 1e-3            # the low-rank shape is recovered
+    # the final shape reproduces the measurements
+    proj = (seq.rotations[:, :2] @ res.shapes).reshape(W.shape)
+    assert np.abs(proj - W).max() < 1e-3 * np.abs(W).max()
+
+
+def test_x_step_matches_general_solve(seq):
+    """One iteration of the closed form equals (R'R + rho I)^-1 (R'W + rho Z) per frame."""
+    W = seq.W / normalization_scale(seq.W)
+    res = optimize_shapes(W, seq.rotations, seq.K, max_iter=1, init="full")
+    F, P = seq.shapes.shape[0], seq.shapes.shape[2]
+    R = seq.rotations[:, :2]
+    rho = 1e-4
+    Z = res.X_init                                   # X# = X_init, Y = 0 at the start
+    A = R.transpose(0, 2, 1) @ R + rho * np.eye(3)
+    X = np.linalg.solve(A, R.transpose(0, 2, 1) @ W.reshape(F, 2, P) + rho * Z)
+    data = 0.5 * np.sum((W.reshape(F, 2, P) - R @ X) ** 2)
+    np.testing.assert_allclose(res.history["data_term"][0], data, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("prior", sorted(PRIORS))
+def test_three_priors_run(seq, prior):
+    W = seq.W / normalization_scale(seq.W)
+    res = optimize_shapes(W, seq.rotations, seq.K, prior=prior)
+    assert res.prior == prior and res.N == PRIORS[prior]
+    assert res.shapes.shape == seq.shapes.shape
+    assert np.all(np.isfinite(res.shapes))
+    assert e3d(res.shapes, seq.shapes) < e3d(res.X_init, seq.shapes)
+    if prior == "nuclear":
+        assert np.all(res.theta == res.theta[0])
+    else:
+        np.testing.assert_allclose(
+            res.theta, shape_weights(res.X_init_singular_values, res.params["xi"],
+                                     res.params["gamma"]))
+
+
+def test_history_and_params(seq):
+    msgs = []
+    res = optimize_shapes(seq.W, seq.rotations, seq.K, progress=msgs.append)
+    lengths = {k: len(v) for k, v in res.history.items()}
+    assert set(lengths) == {"cost", "data_term", "residual", "rho"}
+    assert set(lengths.values()) == {res.n_iter}
+    assert np.all(res.history["cost"] >= res.history["data_term"] - 1e-12)
+    assert np.all(np.diff(res.history["rho"]) > 0)
+    for key in ("mu", "rho0", "lam", "rho_max", "eps", "xi", "gamma", "N", "K", "max_iter"):
+        assert key in res.params
+    assert msgs and "stopped" in msgs[-1]
+
+
+def test_partial_sum_leaves_leading_values(seq):
+    """N larger than the rank leaves everything unpenalised: X = X# is a data fit."""
+    W = seq.W / normalization_scale(seq.W)
+    res = optimize_shapes(W, seq.rotations, seq.K, N=3 * seq.W.shape[1])
+    assert res.history["cost"][-1] == pytest.approx(res.history["data_term"][-1])
+    assert res.history["data_term"][-1] < 1e-12
+
+
+def test_max_iter_and_rho_max_stop(seq):
+    res = optimize_shapes(seq.W, seq.rotations, seq.K, max_iter=5)
+    assert res.n_iter == 5 and not res.converged
+    res = optimize_shapes(seq.W, seq.rotations, seq.K, rho0=1.0, rho_max=2.0, eps=0.0)
+    assert res.history["rho"][-1] <= 2.0 and not res.converged
+
+
+def test_scale_invariance_through_reconstruct(seq):
+    out, shapes = [], []
+    for c in (1e-3, 1.0, 1e3):
+        rec = nrsfm.reconstruct(seq.W * c, seq.K, rotations=seq.rotations)
+        out.append(e3d(rec.shapes, seq.shapes))
+        shapes.append(rec.shapes / c)
+    assert max(out) - min(out) < 1e-6
+    for X in shapes[1:]:
+        np.testing.assert_allclose(X, shapes[0], atol=1e-6 * np.abs(shapes[0]).max())
+
+
+def test_existing_helpers(seq):
+    X = seq.shapes
+    np.testing.assert_array_equal(phi_inv(phi(X), X.shape[2]), X)
+    Xi = pseudo_inverse_shapes(seq.W, seq.rotations)
+    res = optimize_shapes(seq.W, seq.rotations, seq.K, max_iter=1)
+    np.testing.assert_allclose(res.X_init, Xi, atol=1e-12)
+    assert np.linalg.matrix_rank(phi(truncate_rank(Xi, 2))) == 2
+
+
+@pytest.mark.parametrize("change", [
+    dict(W=np.ones((5, 10))),                             # odd number of rows
+    dict(W=np.full((6, 10), np.nan)),
+    dict(R=np.ones((3, 3, 3))),                           # not orthonormal
+    dict(R=np.broadcast_to(np.eye(3), (4, 3, 3))),        # wrong frame count
+    dict(R=np.ones((3, 4, 3))),
+    dict(K=0), dict(prior="bogus"), dict(N=-1), dict(mu=-1.0), dict(lam=1.0),
+    dict(rho0=0.0), dict(max_iter=0), dict(init="bogus"), dict(output="bogus"),
+    dict(gamma=0.0), dict(xi=-1.0)])
+def test_optimize_shapes_bad_input(change):
+    rng = np.random.default_rng(0)
+    args = dict(W=rng.standard_normal((6, 10)), R=np.broadcast_to(np.eye(3), (3, 3, 3)), K=1)
+    args.update(change)
+    W, R, K = args.pop("W"), args.pop("R"), args.pop("K")
+    with pytest.raises(ValueError):
+        optimize_shapes(W, R, K, **args)
