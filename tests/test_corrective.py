@@ -98,3 +98,20 @@ def test_corrective_triplets_deterministic():
     b = C.corrective_triplets(M, 3, seed=4)
     np.testing.assert_array_equal(a.G, b.G)
     np.testing.assert_array_equal(a.costs, b.costs)
+
+
+def test_penalized_gram_admm_matches_cvxpy_and_is_psd():
+    M, _ = _M(3, noise=0.01, seed=2)
+    Qa = C.penalized_gram(M, 3, solver="admm", tol=1e-9)
+    Qc = C.penalized_gram(M, 3, solver="cvxpy")
+    assert np.linalg.eigvalsh(Qa).min() > -1e-9
+    F = M.shape[0] // 2
+    assert np.trace(M.T @ M @ Qa) == pytest.approx(2 * F, rel=1e-6)
+    np.testing.assert_allclose(Qa, Qc, atol=2e-3 * np.abs(Qc).max())
+
+
+@pytest.mark.parametrize("starts", ["relaxed", "multistart", "columns"])
+def test_all_starts_reach_an_exact_triplet_noise_free(starts):
+    M, _ = _M(2, F=40, P=21, seed=6)
+    res = C.corrective_triplets(M, 2, starts=starts, seed=1)
+    assert res.costs[0] < 1e-16

@@ -157,3 +157,16 @@ def test_unknown_strategy_and_option():
         RT.estimate_rotations(M, 1, strategy="nope")
     with pytest.raises(ValueError, match="option"):
         RT.estimate_rotations(M, 1, bogus=1)
+
+
+@pytest.mark.parametrize("strategy,options", [
+    ("literal", {}), ("multistart", {}), ("windows", {}), ("bootstrap", {}),
+    ("organic", dict(refit=True)), ("organic", dict(average="chordal")),
+    ("organic", dict(subsets="random", coef_gate=0.5, coef_weights=True)),
+    ("organic", dict(filter_metric="chordal", filter_against="reference")),
+])
+def test_every_strategy_exact_noise_free(strategy, options):
+    seq, M = _seq(2, "smooth", seed=3)
+    res = RT.estimate_rotations(M, 2, strategy=strategy, seed=1, **options)
+    assert rotation_error(res.rotations, seq.rotations) < 1e-6
+    assert res.params["strategy"] == strategy
