@@ -9,7 +9,7 @@ Conventions
   same image with the shape negated) when ``c_f < 0``; a triplet may also come out with
   the opposite handedness (``diag(1, 1, -1) R_f D``, D = diag(1, 1, -1)), which equals the
   depth reversal of every frame times a fixed rotation, so the per-frame flips absorb it.
-* Registration (:func:`register_rotations`) solves Eq. 4 with one R_reg in SO(3) per
+* Registration (:func:`register_rotations`) solves Eq. 3 with one R_reg in SO(3) per
   triplet plus a per-frame choice of I or diag(-1, -1, 1).
 * The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
   :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
@@ -177,7 +177,7 @@ def _register_one(R_ref, R_k, w, max_iter=20):
 
 
 def register_rotations(R_ref, R_k, weights=None, handedness="both"):
-    """Register one triplet's rotations onto the reference (Eq. 4, flip-aware).
+    """Register one triplet's rotations onto the reference (Eq. 3, flip-aware).
 
     Minimises ``sum_f w_f || R_ref,f - s_f H(R_k,f) R_reg' ||_F^2`` over R_reg in SO(3),
     per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"``, the
@@ -197,7 +197,7 @@ def register_rotations(R_ref, R_k, weights=None, handedness="both"):
     registered : (F, 3, 3) ndarray
         ``s_f H(R_k,f) R_reg'``.
     R_reg : (3, 3) ndarray
-        In the sense of Eq. 4 (for the mirrored handedness, applied after the mirror).
+        In the sense of Eq. 3 (for the mirrored handedness, applied after the mirror).
     flips : (F,) bool
     mirrored : bool
     cost : float
@@ -534,7 +534,7 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
 
         * ``organic`` (default): the best triplet (penalised relaxation + refinement of
           Dai's cost, :func:`nrsfm.corrective.corrective_triplets`) plus K - 1 triplets
-          refined on temporal windows of 90% of the frames; register (flip-aware Eq. 4),
+          refined on temporal windows of 90% of the frames; register (flip-aware Eq. 3),
           filter at delta = 0.05 rad from the L1 average of the samples, per-frame L1
           average (Alg. 1), depth signs by smoothness.
         * ``bmm``: the best triplet only (Dai et al.).

@@ -144,9 +144,10 @@ def test_history_and_params(seq):
 def test_partial_sum_leaves_leading_values(seq):
     """N larger than the rank leaves everything unpenalised: X = X# is a data fit."""
     W = seq.W / normalization_scale(seq.W)
-    res = optimize_shapes(W, seq.rotations, seq.K, N=3 * seq.W.shape[1])
+    res = optimize_shapes(W, seq.rotations, seq.K, N=3 * seq.W.shape[1], init="full")
     assert res.history["cost"][-1] == pytest.approx(res.history["data_term"][-1])
     assert res.history["data_term"][-1] < 1e-12
+    np.testing.assert_allclose(res.shapes, res.X_init, atol=1e-9)
 
 
 def test_max_iter_and_rho_max_stop(seq):
