@@ -19,13 +19,17 @@ def _add_common(p):
     p.add_argument("--quiet", action="store_true", help="no progress messages")
 
 
+def _num(x):
+    return f"{x:.4f}" if x >= 1e-3 else f"{x:.2e}"
+
+
 def _report(result, seq=None):
     print(result.summary())
     if seq is not None and seq.shapes is not None:
         errs = result.errors(seq.shapes, seq.rotations)
-        parts = [f"e3d {errs['e3d']:.4f}", f"e3d (Akhter) {errs['e3d_akhter']:.4f}"]
+        parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
         if "e_R" in errs:
-            parts.append(f"e_R {errs['e_R']:.4f}")
+            parts.append(f"e_R {_num(errs['e_R'])}")
         print("  errors against ground truth: " + ", ".join(parts))
 
 

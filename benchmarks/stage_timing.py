@@ -1,0 +1,54 @@
+"""Time per stage of the organic pipeline (median of several runs, one BLAS thread).
+
+    NRSFM_DATA=../shared/data python benchmarks/stage_timing.py [--sequences pickup drink] [--repeats 5]
+
+Prints the pipeline's own stage timers (``Reconstruction.timings`` and the rotation stage's
+``timings``) as medians; with ``--tables`` the paper's reported pickup figures are printed
+beside (read from that file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+import data_tools as dt
+import nrsfm
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", help="folder holding mocap/ (default: $NRSFM_DATA)")
+    ap.add_argument("--sequences", nargs="+", default=["pickup", "drink"])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--tables", help="tables.json with the paper's reported timings")
+    args = ap.parse_args(argv)
+    mocap = None if args.data is None else f"{args.data}/mocap"
+    for name in args.sequences:
+        seq = dt.load_mocap(name, mocap)
+        stages, totals = {}, []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            res = nrsfm.reconstruct(seq.W, seq.K)
+            totals.append(time.perf_counter() - t0)
+            for k, v in res.timings.items():
+                stages.setdefault(k, []).append(v)
+            for k, v in res.rotation_stage.timings.items():
+                stages.setdefault("rotations/" + k, []).append(v)
+        print(f"{name} (F={seq.n_frames}, K={seq.K}), median of {args.repeats} runs, seconds")
+        for k, v in stages.items():
+            print(f"  {k:28s} {np.median(v):8.4f}  (min {np.min(v):.4f}, max {np.max(v):.4f})")
+        print(f"  {'total reconstruct()':28s} {np.median(totals):8.4f}  (min {np.min(totals):.4f}, "
+              f"max {np.max(totals):.4f})")
+        print(f"  ADMM iterations {res.shape_stage.n_iter}")
+    if args.tables:
+        t = json.load(open(args.tables))["timing_reported"]
+        print("paper (C++/MATLAB, pickup): registration {pickup_registration_s} s, filtering "
+              "{pickup_filtering_s} s, averaging {pickup_rotation_averaging_s} s".format(**t))
+
+
+if __name__ == "__main__":
+    main()
