@@ -48,6 +48,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._validation import check_measurements, check_rotations
+
 __all__ = ["PRIORS", "ShapeResult", "optimize_shapes", "phi", "phi_inv", "psvt",
            "pseudo_inverse_shapes", "shape_weights", "truncate_rank"]
 
@@ -253,26 +255,9 @@ class ShapeResult:
 
 
 def _check_inputs(W, R):
-    W = np.asarray(W, dtype=float)
-    if W.ndim != 2 or W.shape[0] % 2:
-        raise ValueError(f"W must have shape (2F, P); got {W.shape}")
-    if not np.all(np.isfinite(W)):
-        raise ValueError("W contains NaN or infinite entries")
+    W = check_measurements(W)
     F, P = W.shape[0] // 2, W.shape[1]
-    if F < 1 or P < 1:
-        raise ValueError(f"W is empty: shape {W.shape}")
-    R = np.asarray(R, dtype=float)
-    if R.ndim != 3 or R.shape[1] not in (2, 3) or R.shape[2] != 3:
-        raise ValueError(f"R must have shape (F, 3, 3) or (F, 2, 3); got {R.shape}")
-    if R.shape[0] != F:
-        raise ValueError(f"R has {R.shape[0]} frames but W has {F} (W shape {W.shape})")
-    if not np.all(np.isfinite(R)):
-        raise ValueError("R contains NaN or infinite entries")
-    Rf = R[:, :2, :]
-    dev = float(np.abs(Rf @ Rf.transpose(0, 2, 1) - np.eye(2)).max())
-    if dev > 1e-6:
-        raise ValueError(f"the first two rows of every R_f must be orthonormal "
-                         f"(max |R R' - I| = {dev:.3g})")
+    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
     return W, Rf, F, P
 
 
