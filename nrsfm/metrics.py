@@ -21,7 +21,7 @@ import numpy as np
 
 from ._validation import check_shapes, check_rotations
 
-__all__ = ["e3d", "e3d_akhter", "rotation_error", "similarity_align"]
+__all__ = ["camera_alignment", "e3d", "e3d_akhter", "rotation_error", "similarity_align"]
 
 
 def _centre(X):
@@ -104,6 +104,23 @@ def e3d_akhter(X_est, X_gt, per_frame=False):
     return err if per_frame else float(err.mean())
 
 
+def camera_alignment(R_est, R_gt):
+    """Global orthogonal Q minimising ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2``.
+
+    Parameters
+    ----------
+    R_est, R_gt : (F, 3, 3) or (F, 2, 3) ndarray
+
+    Returns
+    -------
+    Q : (3, 3) ndarray, orthogonal (reflection allowed: the mirror ambiguity).
+    """
+    A = np.asarray(R_est, float)[:, :2]
+    B = np.asarray(R_gt, float)[:, :2]
+    U, _, Vt = np.linalg.svd(np.einsum("fki,fkj->ij", A, B))
+    return U @ Vt
+
+
 def rotation_error(R_est, R_gt, per_frame=False):
     """Mean camera rotation error ``e_R`` after one global orthogonal alignment.
 
@@ -124,7 +141,6 @@ def rotation_error(R_est, R_gt, per_frame=False):
     B = check_rotations(R_gt, "R_gt", allow_orthographic=True)[:, :2]
     if A.shape != B.shape:
         raise ValueError(f"R_est has {A.shape[0]} frames but R_gt has {B.shape[0]}")
-    U, _, Vt = np.linalg.svd(np.einsum("fki,fkj->ij", A, B))
-    D = B - A @ (U @ Vt)
+    D = B - A @ camera_alignment(A, B)
     err = np.linalg.norm(D, ord=2, axis=(1, 2))
     return err if per_frame else float(err.mean())

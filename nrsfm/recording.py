@@ -63,6 +63,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .metrics import camera_alignment  # noqa: F401  (re-exported for notebooks)
+
 __all__ = ["RecordingContent", "recording_content", "log_content", "make_blueprint",
            "build_recording", "save_recording", "output_path", "show_recording",
            "ENTITY_PATHS"]
@@ -119,14 +121,6 @@ def _complete(R2):
     """(F, 2, 3) or (F, 3, 3) -> (F, 3, 3) with the third row r1 x r2."""
     R2 = np.asarray(R2, float)[..., :2, :]
     return np.concatenate([R2, np.cross(R2[..., 0, :], R2[..., 1, :])[..., None, :]], axis=-2)
-
-
-def camera_alignment(R_est, R_gt):
-    """Global orthogonal Q minimising ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2``."""
-    A = np.asarray(R_est, float)[:, :2]
-    B = np.asarray(R_gt, float)[:, :2]
-    U, _, Vt = np.linalg.svd(np.einsum("fki,fkj->ij", A, B))
-    return U @ Vt
 
 
 def _gt_world(sequence):

@@ -6,14 +6,12 @@ On the built-in synthetic sequence (``data_tools.default_sequence()``): shapes b
 truth, camera trajectory, ADMM cost curves (organic N = 1 vs weighted N = 0 vs nuclear
 norm), singular values. With ``NRSFM_DATA`` set, the same for one MoCap sequence.
 
-The full pipeline (estimated rotations) runs when :mod:`nrsfm.rotations` is available;
-otherwise the ground-truth rotations are given (the figure titles say which).
+The full organic pipeline runs (estimated rotations).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import sys
 import time
@@ -33,23 +31,10 @@ from nrsfm import figures  # noqa: E402
 from nrsfm.recording import recording_content  # noqa: E402
 
 
-def _run(seq, method):
-    """Reconstruct; returns (result, label of the rotations used)."""
-    if importlib.util.find_spec("nrsfm.rotations") is not None:
-        try:
-            return nrsfm.reconstruct(seq.W, seq.K, method=method), "estimated rotations"
-        except (ImportError, NotImplementedError) as exc:
-            print(f"  rotation stage unavailable ({exc}); using ground-truth rotations")
-    if seq.rotations is None:
-        raise RuntimeError(f"{seq.name}: no rotation stage and no ground-truth rotations")
-    return (nrsfm.reconstruct(seq.W, seq.K, method=method, rotations=seq.rotations),
-            "ground-truth rotations")
-
-
 def render(seq, out, tag):
     t0 = time.perf_counter()
-    res, how = _run(seq, "organic")
-    print(f"  {seq.name}: organic ({how}) {time.perf_counter() - t0:.1f}s, "
+    res = nrsfm.reconstruct(seq.W, seq.K, method="organic")
+    print(f"  {seq.name}: organic (estimated rotations) {time.perf_counter() - t0:.1f}s, "
           f"errors {res.errors(seq.shapes, seq.rotations)}")
     content = recording_content(res, seq)
     written = []
@@ -61,12 +46,13 @@ def render(seq, out, tag):
         written.append(path)
 
     save(figures.shapes_figure(res, seq, content=content,
-                               title=f"{seq.name}: organic reconstruction ({how}) vs ground "
-                                     f"truth, e3d {content.errors.get('e3d', float('nan')):.3g}"),
+                               title=f"{seq.name}: organic reconstruction (estimated "
+                                     f"rotations) vs ground truth, e3d {content.errors.get('e3d', float('nan')):.3g}"),
          "shapes")
     if content.cameras_gt is not None or res.rotation_stage is not None:
         save(figures.cameras_figure(res, seq, content=content,
-                                    title=f"{seq.name}: camera trajectory ({how})"), "cameras")
+                                    title=f"{seq.name}: camera trajectory "
+                                          "(estimated rotations)"), "cameras")
     runs, labels = [res], ["organic (PSVT, N=1)"]
     for method, lab in (("wnn", "weighted NN (N=0)"), ("bmm", "nuclear norm (BMM)")):
         if seq.rotations is not None:       # same rotations for all three: compare priors

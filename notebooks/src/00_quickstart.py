@@ -34,7 +34,6 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")          # small matrices: one BLAS thread is fastest
 
-import importlib.util
 import time
 
 import matplotlib.pyplot as plt
@@ -63,18 +62,12 @@ assert np.allclose(seq.W.reshape(150, 2, 45), seq.shapes[:, :2])  # orthographic
 # %% [markdown]
 # ## Reconstruct
 #
-# `method="organic"` (the default) is the paper's method. The rotation stage lives in
-# `nrsfm.rotations`; if this checkout does not have it yet, the cell says so and gives the
-# ground-truth rotations instead (then only the shape stage is exercised).
+# `method="organic"` (the default) is the paper's method: rotations from all K corrective
+# triplets, then the shape stage.
 
 # %%
-FULL = importlib.util.find_spec("nrsfm.rotations") is not None
 t0 = time.perf_counter()
-if FULL:
-    result = nrsfm.reconstruct(seq.W, seq.K)                    # method="organic"
-else:
-    print("nrsfm.rotations is not available: ground-truth rotations are given")
-    result = nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations)
+result = nrsfm.reconstruct(seq.W, seq.K)                        # method="organic"
 elapsed = time.perf_counter() - t0
 print(result.summary())
 errors = result.errors(seq.shapes, seq.rotations)

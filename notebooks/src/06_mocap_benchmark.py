@@ -33,7 +33,6 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-import importlib.util
 import json
 import time
 from pathlib import Path
@@ -47,9 +46,8 @@ from nrsfm.recording import output_path, save_recording, show_recording
 
 HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
     Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()
-FULL = importlib.util.find_spec("nrsfm.rotations") is not None
 BUDGET = float(os.environ.get("NRSFM_BENCH_BUDGET", 240))
-print(f"benchmark data: {HAVE_DATA}; rotation stage available: {FULL}; budget {BUDGET:.0f} s")
+print(f"benchmark data: {HAVE_DATA}; budget {BUDGET:.0f} s")
 if not HAVE_DATA:
     print("NRSFM_DATA is not set (or has no mocap/): nothing to run here.")
     # CI must run the benchmark (as tests/conftest.py requires for the data tests)
@@ -82,17 +80,16 @@ for name in (data_tools.MOCAP_NAMES if HAVE_DATA else ()):
         continue
     seq = data_tools.load_mocap(name)
     row = dict(F=seq.n_frames, P=seq.n_points, K=seq.K, status="run")
-    if FULL:
-        t0 = time.perf_counter()
-        res = nrsfm.reconstruct(seq.W, seq.K)
-        row["t_full"] = time.perf_counter() - t0
-        err = res.errors(seq.shapes, seq.rotations)
-        row["e3d"] = err["e3d"]
-        row["e_R"] = err.get("e_R")
-        results[name] = res
-        t0 = time.perf_counter()
-        row["e3d_bmm"] = nrsfm.reconstruct(seq.W, seq.K, method="bmm").errors(seq.shapes)["e3d"]
-        row["t_full"] += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res = nrsfm.reconstruct(seq.W, seq.K)
+    row["t_full"] = time.perf_counter() - t0
+    err = res.errors(seq.shapes, seq.rotations)
+    row["e3d"] = err["e3d"]
+    row["e_R"] = err.get("e_R")
+    results[name] = res
+    t0 = time.perf_counter()
+    row["e3d_bmm"] = nrsfm.reconstruct(seq.W, seq.K, method="bmm").errors(seq.shapes)["e3d"]
+    row["t_full"] += time.perf_counter() - t0
     if seq.rotations is not None:
         t0 = time.perf_counter()
         res_gt = nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations)
@@ -100,9 +97,6 @@ for name in (data_tools.MOCAP_NAMES if HAVE_DATA else ()):
         row["e3d_gtR"] = res_gt.errors(seq.shapes)["e3d"]
         row["pi_gtR"] = nrsfm.reconstruct(seq.W, seq.K, method="pseudo_inverse",
                                           rotations=seq.rotations).errors(seq.shapes)["e3d"]
-        results.setdefault(name, res_gt)
-    elif not FULL:
-        row["status"] = "not run: no GT rotations and no rotation stage"
     rows[name] = row
     print(f"{name:8s} done at {time.perf_counter() - t_start:6.1f} s")
 total = time.perf_counter() - t_start
@@ -138,7 +132,7 @@ print(f"total {total:.1f} s")
 # * `organic | GT R` must match METHOD.md's reference values for the shape stage on
 #   ground-truth rotations (pickup 0.014, yoga 0.013, stretch 0.014, drink 0.0075-0.008),
 #   to 20 %.
-# * The full pipeline (when present) is compared with the paper's "Ours" column: it must be
+# * The full pipeline is compared with the paper's "Ours" column: it must be
 #   within 2x of the published figure on the four Akhter sequences the paper's method
 #   solves well (drink, pickup, yoga, stretch); the others are reported, not asserted.
 
@@ -153,9 +147,6 @@ for name, r in rows.items():
         assert r["e3d"] < 2 * PAPER_E3D[name], (name, r["e3d"], PAPER_E3D[name])
 not_run = [n for n, r in rows.items() if r["status"] != "run"]
 print("not run:", not_run or "none")
-if HAVE_DATA and not FULL:
-    print("The rotation stage (nrsfm.rotations) is not in this checkout: the full-pipeline "
-          "column is empty and face/walking/shark could not run.")
 
 # %% [markdown]
 # ## Beside the paper
