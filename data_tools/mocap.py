@@ -1,16 +1,19 @@
 """Loader for the 8-sequence MoCap NRSfM benchmark (Akhter et al. and Torresani et al. files).
 
 The files are not part of this project: they are read from ``data_dir``, which defaults to
-``$NRSFM_DATA/mocap``.
+``$NRSFM_DATA/mocap`` (a relative ``NRSFM_DATA`` resolves against the folder the user started
+in, see :mod:`nrsfm.paths`).
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import scipy.io
+
+from nrsfm.paths import data_dir as _data_root
+from nrsfm.paths import user_path
 
 from .sequence import Sequence
 
@@ -38,15 +41,14 @@ DANCE_CAMERA = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
 def mocap_dir(data_dir=None) -> Path:
-    """Folder holding the ``.mat`` files: ``data_dir`` or ``$NRSFM_DATA/mocap``."""
+    """Folder holding the ``.mat`` files: ``data_dir`` or ``$NRSFM_DATA/mocap``.
+
+    Relative paths resolve against :func:`nrsfm.paths.user_folder`. Raises
+    ``FileNotFoundError`` naming ``NRSFM_DATA`` when neither is given.
+    """
     if data_dir is not None:
-        return Path(data_dir)
-    root = os.environ.get("NRSFM_DATA")
-    if not root:
-        raise FileNotFoundError(
-            "no MoCap data folder given: pass data_dir=... or set NRSFM_DATA to the folder "
-            "that holds mocap/ (e.g. NRSFM_DATA=../shared/data)")
-    return Path(root) / "mocap"
+        return user_path(data_dir)
+    return _data_root() / "mocap"
 
 
 def _interleaved_to_frames(A, rows):
@@ -93,18 +95,41 @@ def load_mocap(name: str, data_dir=None) -> Sequence:
     if not path.is_file():
         where = f"{folder}" + ("" if folder.is_dir() else " (that folder does not exist)")
         raise FileNotFoundError(f"MoCap file {path.name} not found in {where}")
-    mat = scipy.io.loadmat(str(path))
-    if name in AKHTER:
-        return _load_akhter(name, mat)
-    return _load_torresani(name, mat)
+    try:
+        mat = scipy.io.loadmat(str(path))
+    except Exception as exc:  # MatReadError, ValueError, OSError, zlib errors, ...
+        raise ValueError(f"cannot read {path}: not a valid .mat file "
+                         f"({type(exc).__name__}: {_one_line(exc)})") from exc
+    try:
+        seq = _load_akhter(name, mat) if name in AKHTER else _load_torresani(name, mat)
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
+        layout = "Akhter et al. (W, S, Rs)" if name in AKHTER else "Torresani et al. (P3_gt)"
+        raise ValueError(f"{path} does not hold the {layout} layout expected for {name} "
+                         f"({type(exc).__name__}: {_one_line(exc)})") from exc
+    if not (np.all(np.isfinite(seq.W)) and np.all(np.isfinite(seq.shapes))):
+        raise ValueError(f"{path} holds non-finite values")
+    return seq
+
+
+def _one_line(exc):
+    text = " ".join(str(exc).split())
+    return text[:200] if text else "no message"
 
 
 def _load_akhter(name, mat):
     W = np.asarray(mat["W"], dtype=float)
-    S = _interleaved_to_frames(np.asarray(mat["S"], dtype=float), 3)
-    F = W.shape[0] // 2
+    S_raw = np.asarray(mat["S"], dtype=float)
+    if W.ndim != 2 or W.shape[0] % 2 or W.shape[0] == 0:
+        raise ValueError(f"W has shape {W.shape}, expected (2F, P)")
+    F, P = W.shape[0] // 2, W.shape[1]
+    if S_raw.shape != (3 * F, P):
+        raise ValueError(f"S has shape {S_raw.shape}, expected (3F, P) = {(3 * F, P)}")
+    S = _interleaved_to_frames(S_raw, 3)
     if "Rs" in mat:
-        rotations = _complete_rotations(_interleaved_to_frames(np.asarray(mat["Rs"], float), 2))
+        Rs = np.asarray(mat["Rs"], float)
+        if Rs.shape != (2 * F, 3):
+            raise ValueError(f"Rs has shape {Rs.shape}, expected (2F, 3) = {(2 * F, 3)}")
+        rotations = _complete_rotations(_interleaved_to_frames(Rs, 2))
     else:  # dance: fixed camera
         rotations = np.broadcast_to(DANCE_CAMERA, (F, 3, 3)).copy()
     shapes = rotations @ S
@@ -118,6 +143,8 @@ def _load_akhter(name, mat):
 
 def _load_torresani(name, mat):
     P3 = np.asarray(mat["P3_gt"], dtype=float)
+    if P3.ndim != 2 or P3.shape[0] % 3 or P3.shape[0] == 0:
+        raise ValueError(f"P3_gt has shape {P3.shape}, expected (3F, P)")
     F = P3.shape[0] // 3
     shapes = np.stack([P3[:F], P3[F:2 * F], P3[2 * F:]], axis=1)  # (F, 3, P)
     shapes = shapes - shapes.mean(axis=2, keepdims=True)

@@ -1,0 +1,91 @@
+"""nrsfm.paths: the user's folder, outputs outside the package, the data folder."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+import data_tools as dt
+import nrsfm
+from nrsfm import paths
+
+
+def test_user_folder_prefers_pwd(monkeypatch, tmp_path):
+    start = tmp_path / "start"
+    start.mkdir()
+    kernel = tmp_path / "kernel"
+    kernel.mkdir()
+    monkeypatch.chdir(kernel)
+    monkeypatch.setenv("PWD", str(start))
+    assert paths.user_folder() == start
+
+
+@pytest.mark.parametrize("pwd", [None, "", "relative/dir", "/no/such/folder/for/nrsfm"])
+def test_user_folder_falls_back_to_cwd(monkeypatch, tmp_path, pwd):
+    monkeypatch.chdir(tmp_path)
+    if pwd is None:
+        monkeypatch.delenv("PWD", raising=False)
+    else:
+        monkeypatch.setenv("PWD", pwd)
+    assert paths.user_folder() == Path.cwd()
+
+
+def test_user_path(monkeypatch, tmp_path):
+    monkeypatch.chdir("/")
+    monkeypatch.setenv("PWD", str(tmp_path))
+    assert paths.user_path("a/b.npz") == tmp_path / "a" / "b.npz"
+    assert paths.user_path(tmp_path / "x") == tmp_path / "x"
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert paths.user_path("~/y") == tmp_path / "home" / "y"
+
+
+def test_output_dir_default_and_env(monkeypatch, tmp_path):
+    monkeypatch.setenv("PWD", str(tmp_path))
+    monkeypatch.delenv("NRSFM_OUT", raising=False)
+    d = paths.output_dir("notebooks", "x")
+    assert d == tmp_path / "out" / "notebooks" / "x" and d.is_dir()
+    monkeypatch.setenv("NRSFM_OUT", "results")
+    d = paths.output_dir("notebooks")
+    assert d == tmp_path / "results" / "notebooks" and d.is_dir()
+    monkeypatch.setenv("NRSFM_OUT", str(tmp_path / "abs"))
+    assert paths.output_dir() == tmp_path / "abs"
+
+
+def test_output_dir_never_inside_the_package(monkeypatch):
+    pkg = Path(nrsfm.__file__).resolve().parent
+    monkeypatch.setenv("PWD", str(pkg))
+    monkeypatch.delenv("NRSFM_OUT", raising=False)
+    with pytest.raises(ValueError, match="inside the installed nrsfm package"):
+        paths.output_dir("notebooks")
+    assert not (pkg / "out").exists()
+
+
+def test_data_dir(monkeypatch, tmp_path):
+    monkeypatch.setenv("PWD", str(tmp_path))
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    with pytest.raises(FileNotFoundError, match="NRSFM_DATA") as info:
+        paths.data_dir()
+    assert "\n" not in str(info.value)
+    assert paths.data_dir("d") == tmp_path / "d"
+    monkeypatch.setenv("NRSFM_DATA", "rel/data")
+    assert paths.data_dir() == tmp_path / "rel" / "data"
+    assert paths.data_dir(tmp_path / "explicit") == tmp_path / "explicit"
+
+
+def test_relative_nrsfm_data_resolves_against_the_users_folder(monkeypatch, tmp_path):
+    """A data folder holding only mocap/ (relative NRSFM_DATA, kernel in another folder)."""
+    data = tmp_path / "copy" / "mocap"
+    data.mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    F, P = 4, 5
+    P3 = rng.standard_normal((3 * F, P))
+    scipy.io.savemat(data / "shark.mat", {"P3_gt": P3})
+    kernel = tmp_path / "notebooks"
+    kernel.mkdir()
+    monkeypatch.chdir(kernel)
+    monkeypatch.setenv("PWD", str(tmp_path))
+    monkeypatch.setenv("NRSFM_DATA", "copy")
+    seq = dt.load_mocap("shark")
+    assert seq.shapes.shape == (F, 3, P)
+    assert dt.mocap_dir() == data
