@@ -1,4 +1,4 @@
-"""Error metrics of the MoCap benchmark (definitions in the paper, Sec. 4, and METHOD.md).
+"""Error metrics of the MoCap benchmark (definitions in the paper, Sec. 4; see ``docs/decisions.md``).
 
 Three metrics, because the published tables mix them:
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import check_shapes, check_rotations
+from ._validation import check_rotations, check_shapes, power_of_two_scale
 
 __all__ = ["camera_alignment", "e3d", "e3d_akhter", "rotation_error", "similarity_align"]
 
@@ -69,6 +69,9 @@ def e3d(X_est, X_gt, per_frame=False):
     X_gt = check_shapes(X_gt, "X_gt")
     if X_est.shape != X_gt.shape:
         raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
+    # e3d ignores the scale of either input: bring both to max|X| in [1, 2) (exact).
+    X_est = X_est / power_of_two_scale(X_est)
+    X_gt = X_gt / power_of_two_scale(X_gt)
     B = _centre(X_gt)
     err = np.linalg.norm(B - similarity_align(X_est, X_gt), axis=(1, 2))
     err = err / np.linalg.norm(B, axis=(1, 2))
@@ -93,8 +96,9 @@ def e3d_akhter(X_est, X_gt, per_frame=False):
     X_gt = check_shapes(X_gt, "X_gt")
     if X_est.shape != X_gt.shape:
         raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
-    B = _centre(X_gt)
-    A = _centre(X_est)
+    p2 = power_of_two_scale(X_gt)       # a common exact rescaling changes nothing
+    B = _centre(X_gt / p2)
+    A = _centre(X_est / p2)
     s = np.mean(np.std(B, axis=2))
     A, B = A / s, B / s
     # One orthogonal Q for the whole sequence: maximise trace(Q' sum_f B_f A_f').

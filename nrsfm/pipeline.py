@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import blas_threads, check_K, check_measurements, check_rotations
+from ._validation import (blas_threads, check_K, check_measurements, check_rotations,
+                          power_of_two_scale)
 from .measurement import Factorization, centre_rows, factorize
 from .scale import normalization_scale
 from .shape import pseudo_inverse_shapes, truncate_rank
@@ -89,7 +90,9 @@ class Reconstruction:
     def reprojection_error(self):
         """RMS of ``W_f - R_f X_f`` over all entries, in the input's units."""
         proj = (self.rotations[:, :2] @ self.shapes).reshape(self.W.shape)
-        return float(np.sqrt(np.mean((self.W - proj) ** 2)))
+        p2 = power_of_two_scale(self.W)         # exact rescaling: no overflow/underflow
+        d = self.W / p2 - proj / p2
+        return float(np.sqrt(np.mean(d ** 2)) * p2)
 
     def errors(self, shapes_gt=None, rotations_gt=None, world_shapes_gt=None):
         """Benchmark errors against ground truth.
@@ -209,9 +212,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
     with limit:
         t0 = time.perf_counter()
-        Wc, row_means = centre_rows(W)
-        scale = normalization_scale(Wc)
-        Wn = Wc / scale
+        # Any finite W: divide by an exact power of two near max|W| first, so that
+        # centring, norms and SVD neither overflow (|W| ~ 1e153) nor underflow (~ 1e-165).
+        p2 = power_of_two_scale(W)
+        Wc_p, row_means_p = centre_rows(W / p2)
+        s = normalization_scale(Wc_p)
+        Wn = Wc_p / s
+        scale = s * p2
+        Wc, row_means = Wc_p * p2, row_means_p * p2
         fact = factorize(Wn, K)
         timings["factorize"] = time.perf_counter() - t0
         say(f"rank-{3 * K} factorisation of {2 * F}x{P} W: residual {fact.residual:.3g}")
@@ -244,9 +252,13 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                   shape_prior=prior, rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
                   rotations_given=rotation_stage is None)
-    return Reconstruction(rotations=rotations, shapes=shapes * scale, method=method, K=K,
+    shapes_out, X_init_out = (shapes * s) * p2, (X_init * s) * p2
+    if not (np.all(np.isfinite(shapes_out)) and np.isfinite(scale)):
+        raise ValueError(f"the shapes overflow in the input's units (max|W| = "
+                         f"{np.abs(W).max():.3g}); rescale W")
+    return Reconstruction(rotations=rotations, shapes=shapes_out, method=method, K=K,
                           W=Wc, row_means=row_means, scale=scale, factorization=fact,
-                          X_init=X_init * scale, rotation_stage=rotation_stage,
+                          X_init=X_init_out, rotation_stage=rotation_stage,
                           shape_stage=shape_stage, params=params, timings=timings)
 
 

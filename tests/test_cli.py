@@ -1,12 +1,66 @@
+"""The command line: outputs written exactly where asked, and every failure one line.
+
+Each failure runs ``python -m nrsfm`` in a subprocess (about 0.5 s each) and checks: a
+non-zero exit, exactly one line on stderr, no traceback.
+"""
+
+import hashlib
+import os
+import resource
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.io
 
 import data_tools as dt
-from nrsfm.cli import main
+from nrsfm import __version__
+from nrsfm.cli import COMMANDS, build_parser, main
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def nrsfm(*args, cwd, preexec_fn=None, env_extra=None):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PWD=str(cwd), OMP_NUM_THREADS="1",
+               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    env.pop("NRSFM_DEBUG", None)
+    env.update(env_extra or {})
+    return subprocess.run([sys.executable, "-m", "nrsfm", *map(str, args)], cwd=cwd,
+                          env=env, capture_output=True, text=True, preexec_fn=preexec_fn,
+                          timeout=120)
+
+
+def assert_one_line_failure(proc, *fragments, code=None):
+    lines = proc.stderr.splitlines()
+    assert proc.returncode != 0, proc.stdout
+    if code is not None:
+        assert proc.returncode == code, proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("nrsfm"), lines
+    for frag in fragments:
+        assert frag in lines[0], lines[0]
+
+
+def digest(path):
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def seq():
+    return dt.make_synthetic(F=30, P=20, K=2, seed=4)
+
+
+@pytest.fixture()
+def good(tmp_path, seq):
+    path = tmp_path / "seq.npz"
+    np.savez(path, W=seq.W, K=2, shapes=seq.shapes, rotations=seq.rotations)
+    return path
+
+
+# --------------------------------------------------------------------------- success
 
 def test_help_lists_subcommands(capsys):
     with pytest.raises(SystemExit) as exc:
@@ -17,44 +71,231 @@ def test_help_lists_subcommands(capsys):
         assert cmd in out
 
 
-def test_console_entry_point_help():
-    proc = subprocess.run([sys.executable, "-m", "nrsfm", "run", "--help"],
-                          capture_output=True, text=True, check=True)
-    assert "INPUT" in proc.stdout.upper() and "--rrd" in proc.stdout
+def test_version(tmp_path):
+    proc = nrsfm("--version", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"nrsfm {__version__}"
 
 
-def test_run_writes_results(tmp_path, capsys):
-    seq = dt.make_synthetic(F=30, P=20, K=2, seed=4)
-    inp = tmp_path / "seq.npz"
-    np.savez(inp, W=seq.W, K=2, shapes=seq.shapes, rotations=seq.rotations)
-    out = tmp_path / "out.npz"
-    assert main(["run", str(inp), "-o", str(out), "--method", "pseudo_inverse",
+def test_registrations_build_the_parser():
+    assert len(COMMANDS) >= 3
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert {"demo", "run", "mocap"} <= set(sub.choices)
+
+
+def test_run_writes_exactly_the_path_given(tmp_path, good, seq, capsys):
+    out = tmp_path / "result.dat"
+    assert main(["run", str(good), "-o", str(out), "--method", "pseudo_inverse",
                  "--given-rotations", "--quiet"]) == 0
     text = capsys.readouterr().out
-    assert "e3d" in text and str(out) in text
+    assert f"wrote {out}\n" in text and "e3d" in text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.dat", "seq.npz"]
     with np.load(out) as z:
         assert z["shapes"].shape == (30, 3, 20)
         np.testing.assert_allclose(z["rotations"], seq.rotations)
-        assert int(z["K"]) == 2
+        assert int(z["K"]) == 2 and str(z["method"]) == "pseudo_inverse"
+        assert {"W", "X_init", "row_means", "scale", "version", "e3d", "e3d_akhter",
+                "e_R"} <= set(z.files)
 
 
-def test_run_errors_are_messages(tmp_path):
-    with pytest.raises(SystemExit, match="not found"):
-        main(["run", str(tmp_path / "missing.npz")])
-    bad = tmp_path / "bad.npz"
-    np.savez(bad, X=np.zeros(3))
-    with pytest.raises(SystemExit, match="no array 'W'"):
-        main(["run", str(bad), "--K", "1"])
-    nok = tmp_path / "nok.npz"
-    np.savez(nok, W=np.zeros((10, 6)))
-    with pytest.raises(SystemExit, match="--K"):
-        main(["run", str(nok)])
-    nan = tmp_path / "nan.npz"
-    np.savez(nan, W=np.full((10, 6), np.nan))
-    with pytest.raises(SystemExit, match="NaN"):
-        main(["run", str(nan), "--K", "1"])
+def test_run_default_output_and_full_keys(tmp_path, good):
+    assert main(["run", str(good), "--quiet"]) == 0
+    with np.load(tmp_path / "seq_nrsfm.npz") as z:
+        keys = set(z.files)
+    assert {"admm_cost", "admm_data_term", "admm_residual", "admm_rho", "G",
+            "per_triplet_rotations", "kept"} <= keys
 
 
-def test_mocap_missing_folder_message(tmp_path):
-    with pytest.raises(SystemExit, match="not found"):
-        main(["mocap", "drink", "--data", str(tmp_path)])
+def test_float_integral_K_in_file_is_accepted(tmp_path, seq):
+    path = tmp_path / "k.npz"
+    np.savez(path, W=seq.W, K=2.0)
+    assert main(["run", str(path), "--quiet", "--method", "pseudo_inverse"]) == 0
+
+
+def test_rrd_without_path_goes_to_the_users_out_folder(tmp_path):
+    proc = nrsfm("demo", "--rrd", "--quiet", "--method", "pseudo_inverse", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out" / "demo.rrd").stat().st_size > 0
+
+
+@pytest.mark.parametrize("factor", [1e153, 1e-165])
+def test_any_finite_scale(tmp_path, seq, factor):
+    path = tmp_path / "scaled.npz"
+    np.savez(path, W=seq.W * factor, K=2, shapes=seq.shapes * factor,
+             rotations=seq.rotations)
+    out = tmp_path / "o.npz"
+    assert main(["run", str(path), "-o", str(out), "--quiet"]) == 0
+    ref = tmp_path / "ref.npz"
+    np.savez(ref, W=seq.W, K=2)
+    assert main(["run", str(ref), "-o", str(tmp_path / "r.npz"), "--quiet"]) == 0
+    with np.load(out) as z, np.load(tmp_path / "r.npz") as r:
+        assert np.all(np.isfinite(z["shapes"]))
+        np.testing.assert_allclose(z["shapes"] / factor, r["shapes"], rtol=0,
+                                   atol=1e-6 * np.abs(r["shapes"]).max())
+        assert z["e3d"] < 0.1
+
+
+# --------------------------------------------------------------------------- failures
+
+def _write(tmp_path, name, **arrays):
+    path = tmp_path / name
+    np.savez(path, **arrays)
+    return path
+
+
+def _bad_inputs(tmp_path, seq, good):
+    """name -> (argument list, fragment expected in the message)."""
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "corrupt.npz").write_bytes(good.read_bytes()[:300])
+    raw = bytearray(good.read_bytes())
+    raw[200:260] = b"\0" * 60                       # damaged member data, valid zip layout
+    (tmp_path / "damaged.npz").write_bytes(bytes(raw))
+    np.save(tmp_path / "w.npy", seq.W)
+    (tmp_path / "text.npz").write_text("W = 1, 2, 3\n")
+    obj = tmp_path / "obj.npz"
+    np.savez(obj, W=np.array([1, "a", None], dtype=object), K=1)
+    return {
+        "missing": (["run", tmp_path / "nope.npz"], "not found"),
+        "folder input": (["run", tmp_path], "is a folder"),
+        "empty": (["run", tmp_path / "empty.npz"], "is empty"),
+        "corrupt": (["run", tmp_path / "corrupt.npz"], "corrupt"),
+        "damaged": (["run", tmp_path / "damaged.npz"], "damaged.npz"),
+        "text": (["run", tmp_path / "text.npz"], "not an .npz"),
+        "npy": (["run", tmp_path / "w.npy"], ".npy"),
+        "object": (["run", obj], "object array"),
+        "no W": (["run", _write(tmp_path, "x.npz", X=np.zeros(3))], "no array 'W'"),
+        "no K": (["run", _write(tmp_path, "nok.npz", W=seq.W)], "--K"),
+        "K list": (["run", _write(tmp_path, "kl.npz", W=seq.W, K=[2, 3])], "shape (2,)"),
+        "K two": (["run", _write(tmp_path, "kt.npz", W=seq.W, K="two")], "'two'"),
+        "K 2.7": (["run", _write(tmp_path, "k27.npz", W=seq.W, K=2.7)], "2.7"),
+        "K bool": (["run", _write(tmp_path, "kb.npz", W=seq.W, K=True)], "integer"),
+        "K too big": (["run", good, "--K", "100"], "too large"),
+        "--K 0": (["run", good, "--K", "0"], "at least 1"),
+        "--K 2.7": (["run", good, "--K", "2.7"], "2.7"),
+        "--K -1": (["run", good, "--K=-1"], "at least 1"),
+        "--seed -1": (["run", good, "--seed=-1"], "non-negative"),
+        "W strings": (["run", _write(tmp_path, "ws.npz", W=np.array([["a"] * 5] * 4),
+                                     K=1)], "numeric"),
+        "W nan": (["run", _write(tmp_path, "nan.npz", W=np.full((10, 6), np.nan), K=1)],
+                  "NaN"),
+        "W 1-D": (["run", _write(tmp_path, "w1.npz", W=np.zeros(10), K=1)], "(2F, P)"),
+        "W constant": (["run", _write(tmp_path, "wc.npz", W=np.ones((10, 6)), K=1)],
+                       "constant"),
+        "shapes points": (["run", _write(tmp_path, "sp.npz", W=seq.W, K=2,
+                                         shapes=seq.shapes[:, :, :5])], "5 points"),
+        "shapes frames": (["run", _write(tmp_path, "sf.npz", W=seq.W, K=2,
+                                         shapes=seq.shapes[:3])], "3 frames"),
+        "shapes 2-D": (["run", _write(tmp_path, "s2.npz", W=seq.W, K=2,
+                                      shapes=seq.W)], "(F, 3, P)"),
+        "rotations bad": (["run", _write(tmp_path, "rb.npz", W=seq.W, K=2,
+                                         rotations=seq.rotations * 2)], "orthonormal"),
+        "edges bad": (["run", _write(tmp_path, "eb.npz", W=seq.W, K=2,
+                                     edges=np.array([[0, 99]]))], "edges"),
+        "given rotations absent": (["run", _write(tmp_path, "nr.npz", W=seq.W, K=2),
+                                    "--given-rotations"], "rotations"),
+        "output is a folder": (["run", good, "-o", tmp_path], "existing folder"),
+        "output folder missing": (["run", good, "-o", tmp_path / "no" / "o.npz"],
+                                  "does not exist"),
+        "output read-only folder": (["run", good, "-o", "/sys/o.npz"], "not writable"),
+        "output is the input": (["run", good, "-o", good], "overwrite the input"),
+        "rrd unwritable": (["run", good, "--rrd", "/sys/o.rrd"], "not writable"),
+        "rrd folder missing": (["demo", "--rrd", tmp_path / "no" / "d.rrd"],
+                               "does not exist"),
+        "rrd is a folder": (["demo", "--rrd", tmp_path / "f.rrd"], "existing folder"),
+        "rrd suffix": (["demo", "--rrd", tmp_path / "d.txt"], ".rrd"),
+        "unknown method": (["demo", "--method", "magic"], "invalid choice"),
+        "no command": ([], "required"),
+        "unknown sequence": (["mocap", "juggling", "--data", tmp_path], "unknown MoCap"),
+        "mocap folder missing": (["mocap", "drink", "--data", tmp_path / "none"],
+                                 "not found"),
+    }
+
+
+CASES = ["missing", "folder input", "empty", "corrupt", "damaged", "text", "npy", "object",
+         "no W", "no K", "K list", "K two", "K 2.7", "K bool", "K too big", "--K 0",
+         "--K 2.7", "--K -1", "--seed -1", "W strings", "W nan", "W 1-D", "W constant",
+         "shapes points", "shapes frames", "shapes 2-D", "rotations bad", "edges bad",
+         "given rotations absent", "output is a folder", "output folder missing",
+         "output read-only folder", "output is the input", "rrd unwritable",
+         "rrd folder missing", "rrd is a folder", "rrd suffix", "unknown method",
+         "no command", "unknown sequence", "mocap folder missing"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_failure_is_one_line(tmp_path, seq, good, case):
+    (tmp_path / "f.rrd").mkdir()
+    args, fragment = _bad_inputs(tmp_path, seq, good)[case]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    proc = nrsfm(*args, cwd=tmp_path)
+    assert_one_line_failure(proc, fragment)
+    # checked before the computation: no progress, no output, nothing new on disk
+    assert proc.stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_read_only_folder_by_permissions(tmp_path, good):
+    if os.geteuid() == 0:
+        pytest.skip("root writes into read-only folders (the /sys case covers it)")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        assert_one_line_failure(nrsfm("run", good, "-o", ro / "o.npz", cwd=tmp_path),
+                                "not writable")
+    finally:
+        ro.chmod(0o755)
+
+
+def test_given_rotations_without_ground_truth_on_mocap(tmp_path):
+    folder = tmp_path / "mocap"
+    folder.mkdir()
+    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.random.default_rng(0)
+                                            .standard_normal((30, 12))})
+    proc = nrsfm("mocap", "shark", "--data", folder, "--given-rotations", cwd=tmp_path)
+    assert_one_line_failure(proc, "no ground-truth rotations", code=2)
+    proc = nrsfm("mocap", "shark", "--data", folder, "--K", "100", cwd=tmp_path)
+    assert_one_line_failure(proc, "too large")
+
+
+def _corrupt_mat_files(folder, good_mat):
+    folder.mkdir()
+    (folder / "drink.mat").write_bytes(b"")                              # MatReadError
+    (folder / "pickup.mat").write_bytes(good_mat[:5000])                 # truncated
+    (folder / "yoga.mat").write_bytes(np.random.default_rng(0).bytes(4096))
+    scipy.io.savemat(folder / "stretch.mat", {"X": np.zeros(3)})         # KeyError
+    scipy.io.savemat(folder / "dance.mat", {"W": np.zeros((10, 4)), "S": np.zeros((3, 4))})
+    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.zeros((7, 4))})  # IndexError-like
+    scipy.io.savemat(folder / "face.mat", {"P3_gt": np.array(["ab"])})
+    scipy.io.savemat(folder / "walking.mat", {"P3_gt": np.full((9, 4), np.nan)})
+
+
+@pytest.mark.parametrize("name", dt.MOCAP_NAMES)
+def test_corrupt_mat_files(tmp_path, name):
+    rng = np.random.default_rng(1)
+    buf = tmp_path / "valid.mat"
+    scipy.io.savemat(buf, {"W": rng.standard_normal((40, 30)),
+                           "S": rng.standard_normal((60, 30))})
+    _corrupt_mat_files(tmp_path / "mocap", buf.read_bytes())
+    proc = nrsfm("mocap", name, "--data", tmp_path / "mocap", cwd=tmp_path)
+    assert_one_line_failure(proc, f"{name}.mat", code=1)
+
+
+def test_failed_writes_leave_existing_outputs_byte_identical(tmp_path, good):
+    out, rrd = tmp_path / "result.npz", tmp_path / "rec.rrd"
+    proc = nrsfm("run", good, "-o", out, "--rrd", rrd, "--quiet", "--method",
+                 "pseudo_inverse", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    before = {p: digest(p) for p in (out, rrd)}
+
+    def limit_to(nbytes):
+        return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+
+    # other settings than the first run: the new content would differ from the old
+    proc = nrsfm("run", good, "-o", out, "--quiet", cwd=tmp_path,
+                 preexec_fn=limit_to(out.stat().st_size // 2))
+    assert_one_line_failure(proc, str(out), code=1)
+    proc = nrsfm("demo", "--rrd", rrd, "--quiet", "--method", "pseudo_inverse",
+                 cwd=tmp_path, preexec_fn=limit_to(rrd.stat().st_size // 2))
+    assert_one_line_failure(proc, str(rrd), code=1)
+    assert {p: digest(p) for p in (out, rrd)} == before
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert leftovers == []
