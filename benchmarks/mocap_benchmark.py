@@ -2,13 +2,13 @@
 
 Usage::
 
-    NRSFM_DATA=../shared/data python benchmarks/mocap_benchmark.py \
-        [--sequences drink pickup ...] [--methods organic bmm] \
-        [--tables ../shared/paper/tables.json] [--dai-k]
+    NRSFM_DATA=/path/to/data python benchmarks/mocap_benchmark.py \
+        [--sequences drink pickup ...] [--methods organic bmm] [--dai-k]
 
 Prints, per sequence, e3d (the paper's metric), e3d under Akhter's metric, e_R where ground
-truth rotations exist, and the run time; with ``--tables`` the published figures are
-printed beside ours (read from that file, never typed in here). ``--dai-k`` also runs BMM
+truth rotations exist, and the run time, with the published figures beside ours (read from
+``nrsfm/data/published.json`` through :mod:`nrsfm.published`, never typed in here; their
+sources are in that file). ``--dai-k`` also runs BMM
 with Dai et al.'s own K and the Akhter metric, to compare with Dai's code run as a peer.
 One BLAS thread (the library sets it).
 """
@@ -16,11 +16,12 @@ One BLAS thread (the library sets it).
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import data_tools as dt
 import nrsfm
+from nrsfm.paths import data_dir
+from nrsfm.published import published
 
 
 def run(seq, method, K, seed):
@@ -42,13 +43,14 @@ def main(argv=None):
     ap.add_argument("--sequences", nargs="+", default=list(dt.MOCAP_NAMES))
     ap.add_argument("--methods", nargs="+", default=["organic", "bmm"],
                     choices=sorted(nrsfm.METHODS))
-    ap.add_argument("--tables", help="tables.json with the published figures")
+    ap.add_argument("--no-published", action="store_true",
+                    help="do not print the published figures beside ours")
     ap.add_argument("--dai-k", action="store_true",
                     help="also run BMM with Dai's K under the Akhter metric")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    mocap = None if args.data is None else f"{args.data}/mocap"
-    paper = json.load(open(args.tables)) if args.tables else None
+    mocap = None if args.data is None else data_dir(args.data) / "mocap"
+    paper = None if args.no_published else published()
 
     rows = []
     for name in args.sequences:

@@ -1,22 +1,23 @@
 """Time per stage of the organic pipeline (median of several runs, one BLAS thread).
 
-    NRSFM_DATA=../shared/data python benchmarks/stage_timing.py [--sequences pickup drink] [--repeats 5]
+    NRSFM_DATA=/path/to/data python benchmarks/stage_timing.py [--sequences pickup drink] [--repeats 5]
 
 Prints the pipeline's own stage timers (``Reconstruction.timings`` and the rotation stage's
-``timings``) as medians; with ``--tables`` the paper's reported pickup figures are printed
-beside (read from that file).
+``timings``) as medians, and the paper's reported pickup timings (from
+``nrsfm/data/published.json`` through :mod:`nrsfm.published`).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
 
 import data_tools as dt
 import nrsfm
+from nrsfm.paths import data_dir
+from nrsfm.published import published_value
 
 
 def main(argv=None):
@@ -24,9 +25,8 @@ def main(argv=None):
     ap.add_argument("--data", help="folder holding mocap/ (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+", default=["pickup", "drink"])
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--tables", help="tables.json with the paper's reported timings")
     args = ap.parse_args(argv)
-    mocap = None if args.data is None else f"{args.data}/mocap"
+    mocap = None if args.data is None else data_dir(args.data) / "mocap"
     for name in args.sequences:
         seq = dt.load_mocap(name, mocap)
         stages, totals = {}, []
@@ -44,10 +44,10 @@ def main(argv=None):
         print(f"  {'total reconstruct()':28s} {np.median(totals):8.4f}  (min {np.min(totals):.4f}, "
               f"max {np.max(totals):.4f})")
         print(f"  ADMM iterations {res.shape_stage.n_iter}")
-    if args.tables:
-        t = json.load(open(args.tables))["timing_reported"]
-        print("paper (C++/MATLAB, pickup): registration {pickup_registration_s} s, filtering "
-              "{pickup_filtering_s} s, averaging {pickup_rotation_averaging_s} s".format(**t))
+    t = {k: published_value("timing_reported", k) for k in (
+        "pickup_registration_s", "pickup_filtering_s", "pickup_rotation_averaging_s")}
+    print("paper (C++/MATLAB, pickup): registration {pickup_registration_s} s, filtering "
+          "{pickup_filtering_s} s, averaging {pickup_rotation_averaging_s} s".format(**t))
 
 
 if __name__ == "__main__":

@@ -505,14 +505,12 @@ def save_recording(result, path, sequence=None, **kw):
 # --------------------------------------------------------------------------- notebooks
 
 def output_path(name, subdir="notebooks"):
-    """Where notebooks and scripts write recordings: ``$NRSFM_OUT/name`` if set, else
-    ``<repository>/out/<subdir>/name`` (the repository of this package)."""
-    import os
+    """Where notebooks and scripts write recordings: ``output_dir(subdir) / name``, i.e.
+    ``$NRSFM_OUT/<subdir>/name`` or ``out/<subdir>/name`` under the folder the user started
+    in (:func:`nrsfm.paths.output_dir`), never inside the installed package."""
+    from .paths import output_dir
 
-    root = os.environ.get("NRSFM_OUT")
-    base = Path(root) if root else Path(__file__).resolve().parents[1] / "out" / subdir
-    base.mkdir(parents=True, exist_ok=True)
-    return base / name
+    return output_dir(subdir) / name
 
 
 def _interactive():
