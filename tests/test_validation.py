@@ -92,3 +92,37 @@ def test_pseudo_inverse_with_given_rotations_result_object(seq):
     s = np.linalg.svd(res.shapes.reshape(F, -1), compute_uv=False)
     assert s[2] < 1e-10 * s[0]
     assert "pseudo_inverse" in res.summary()
+
+
+def test_power_of_two_scale_is_exact():
+    from nrsfm._validation import power_of_two_scale
+
+    rng = np.random.default_rng(0)
+    for c in (1e153, 1e-165, 3.0, 2.0 ** -1060, 1e300):
+        A = rng.standard_normal((6, 5)) * c
+        p = power_of_two_scale(A)
+        assert 1.0 <= np.abs(A / p).max() < 2.0
+        np.testing.assert_array_equal((A / p) * p, A)      # only exponents change
+    assert power_of_two_scale(np.zeros((3, 3))) == 1.0
+
+
+@pytest.mark.parametrize("factor", [1e153, 1e-165, 1e300, 1e-300])
+def test_any_finite_scale_of_W(seq, factor):
+    ref = nrsfm.reconstruct(seq.W, 2)
+    res = nrsfm.reconstruct(seq.W * factor, 2)
+    assert np.all(np.isfinite(res.shapes)) and res.scale > 0
+    np.testing.assert_allclose(res.shapes / factor, ref.shapes, rtol=0,
+                               atol=1e-6 * np.abs(ref.shapes).max())
+    np.testing.assert_allclose(res.reprojection_error() / factor, ref.reprojection_error(),
+                               rtol=1e-4)
+    e_ref = ref.errors(seq.shapes, seq.rotations)
+    e = res.errors(seq.shapes * factor, seq.rotations)
+    for key in e_ref:
+        np.testing.assert_allclose(e[key], e_ref[key], rtol=1e-5, atol=1e-7)
+
+
+def test_tiny_variation_on_a_large_offset_is_not_constant(seq):
+    """Only a W whose rows are all constant is 'constant'."""
+    res = nrsfm.reconstruct(seq.W * 1e-9 + 1e6, 2, method="pseudo_inverse",
+                            rotations=seq.rotations)
+    assert np.all(np.isfinite(res.shapes)) and res.scale > 0
