@@ -105,6 +105,15 @@ def test_run_default_output_and_full_keys(tmp_path, good):
             "per_triplet_rotations", "kept"} <= keys
 
 
+def test_ignored_arrays_give_a_one_line_warning(tmp_path, seq):
+    path = tmp_path / "extra.npz"
+    np.savez(path, W=seq.W, K=2, colour=np.zeros(3))
+    proc = nrsfm("run", path, "--quiet", "--method", "pseudo_inverse", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.splitlines() == [
+        f"nrsfm: warning: {path}: ignoring arrays ['colour']"]
+
+
 def test_float_integral_K_in_file_is_accepted(tmp_path, seq):
     path = tmp_path / "k.npz"
     np.savez(path, W=seq.W, K=2.0)

@@ -92,6 +92,12 @@ def test_installed_package_writes_outputs_where_the_user_works(tmp_path):
     recordings = list((work / "out" / "notebooks").glob("*.rrd"))
     assert recordings and all(p.stat().st_size > 0 for p in recordings)
 
+    data = subprocess.run([str(venv / "bin" / "python"), "-c",
+                           "from nrsfm.published import published_value as v; "
+                           "assert v('mocap_K', 'drink') == 12"],
+                          cwd=work, env=env, capture_output=True, text=True)
+    assert data.returncode == 0, data.stderr      # the data file ships with the package
+
     # the package is the installed one (the kernel ran in nbdir, without PYTHONPATH)
     site = list(venv.glob("lib/python*/site-packages/nrsfm/__init__.py"))
     assert site, "nrsfm not installed in the venv"
