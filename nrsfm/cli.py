@@ -329,6 +329,9 @@ def cmd_mocap(args):
     if args.name not in MOCAP_NAMES:
         raise UsageError(f"unknown MoCap sequence {args.name!r}; expected one of "
                          f"{', '.join(MOCAP_NAMES)}")
+    if args.data is None and not os.environ.get("NRSFM_DATA"):
+        raise UsageError("no data folder: pass --data DIR (the folder with the .mat files) "
+                         "or set NRSFM_DATA to the folder that holds mocap/")
     rrd = _rrd_path(args, f"{args.name}.rrd")
     seq = load_mocap(args.name, args.data)
     K = args.K if args.K is not None else seq.K
@@ -411,6 +414,10 @@ def main(argv=None):
         _fail(f"nrsfm {args.command}: error: {_one_line(exc)}", EXIT_USAGE)
     except KeyboardInterrupt:
         _fail("nrsfm: interrupted", 130)
+    except BrokenPipeError:  # e.g. `nrsfm demo | head -1`: stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        raise SystemExit(EXIT_ERROR)
     except EXPECTED_ERRORS as exc:
         if os.environ.get("NRSFM_DEBUG"):
             raise

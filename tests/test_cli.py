@@ -256,6 +256,14 @@ def test_read_only_folder_by_permissions(tmp_path, good):
         ro.chmod(0o755)
 
 
+def test_mocap_without_data_folder(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "NRSFM_DATA"}
+    proc = subprocess.run([sys.executable, "-m", "nrsfm", "mocap", "pickup"], cwd=tmp_path,
+                          env=dict(env, PYTHONPATH=str(ROOT), PWD=str(tmp_path)),
+                          capture_output=True, text=True, timeout=120)
+    assert_one_line_failure(proc, "NRSFM_DATA", "--data", code=2)
+
+
 def test_given_rotations_without_ground_truth_on_mocap(tmp_path):
     folder = tmp_path / "mocap"
     folder.mkdir()
