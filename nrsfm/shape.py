@@ -50,8 +50,11 @@ import numpy as np
 
 from ._validation import check_measurements, check_rotations
 
-__all__ = ["PRIORS", "ShapeResult", "optimize_shapes", "phi", "phi_inv", "psvt",
-           "pseudo_inverse_shapes", "shape_weights", "truncate_rank"]
+__all__ = ["PRIORS", "SHAPE_SOLVERS", "ShapeResult", "optimize_shapes", "phi", "phi_inv",
+           "psvt", "pseudo_inverse_shapes", "shape_weights", "solve_shapes", "truncate_rank"]
+
+#: Shape solvers understood by :func:`solve_shapes` (and ``reconstruct(shape_solver=...)``).
+SHAPE_SOLVERS = ("admm", "bilinear", "closed_form")
 
 #: Shape priors understood by :func:`optimize_shapes`: prior -> default N.
 PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
@@ -430,3 +433,38 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
                        theta=theta, N=N, prior=prior,
                        history={k: np.asarray(v) for k, v in hist.items()},
                        n_iter=n_iter, converged=converged, params=params)
+
+
+def solve_shapes(W, R, K, prior="organic", solver="admm", **options):
+    """Run one of the shape solvers on ``(W, R)``.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements (for ``admm`` in the units of :mod:`nrsfm.scale`; the
+        other solvers are scale-free).
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+    prior : {"organic", "weighted", "nuclear"}
+        Ignored by ``closed_form`` (an exact rank-K fit has no prior).
+    solver : {"admm", "bilinear", "closed_form"}
+        :func:`optimize_shapes` (the paper's continuation ADMM),
+        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear` or
+        :func:`nrsfm.shape_bilinear.closed_form_result`.
+    **options
+        Passed to the solver.
+
+    Returns
+    -------
+    ShapeResult or BilinearShapeResult
+    """
+    if solver == "admm":
+        return optimize_shapes(W, R, K, prior=prior, **options)
+    from . import shape_bilinear
+
+    if solver == "bilinear":
+        return shape_bilinear.optimize_shapes_bilinear(W, R, K, prior=prior, **options)
+    if solver == "closed_form":
+        options.pop("progress", None)
+        return shape_bilinear.closed_form_result(W, R, K, **options)
+    raise ValueError(f"unknown shape solver {solver!r}; expected one of {list(SHAPE_SOLVERS)}")

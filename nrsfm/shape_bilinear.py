@@ -95,6 +95,24 @@ def closed_form_coefficients(W, R, K):
     return B, evals[:K + 1] / max(evals[-1], 1e-300)
 
 
+def closed_form_result(W, R, K, **options):
+    """The closed-form rank-K shape as a shape-stage result (``shape_solver="closed_form"``).
+
+    :func:`optimize_shapes_bilinear` with ``mu = 0`` and no iterations: B from
+    :func:`closed_form_coefficients`, C by least squares; the result reports the data term
+    and the relative gradient norm of the plain rank-K fit at that point. No prior.
+    """
+    options = dict(options)
+    for key in ("mu", "mu_factor", "max_iter", "init", "rank"):
+        if key in options:
+            raise ValueError(f"closed_form takes no {key!r} option")
+    res = optimize_shapes_bilinear(W, R, K, prior="nuclear", mu=0.0, max_iter=0,
+                                   init="closed_form", **options)
+    res.prior = "none"
+    res.params["prior"] = "none"
+    return res
+
+
 def closed_form_shapes(W, R, K):
     """Closed-form rank-K shape: coefficients by :func:`closed_form_coefficients`, bases
     by linear least squares.
@@ -177,24 +195,47 @@ def _c_step(B, Pi, Xi, reg):
     N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
     rhs = (B.T @ Xi).reshape(3 * r, P)
     try:
-        c = scipy.linalg.solve(N, rhs, assume_a="pos", check_finite=False)
+        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
+                                   check_finite=False)
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
         c = np.linalg.lstsq(N, rhs, rcond=None)[0]
     return c.reshape(r, 3 * P).T                              # (3P, r)
 
 
-def _objective(B, C, Wf, Rf, Xi, reg, P):
-    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC)."""
+def _objective(B, C, Pi, Xi, w2, reg):
+    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC).
+
+    With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
+    <X_f, Pi_f X_f>`` (``Pi_f = R_f'R_f``), and ``dE_data / dX_f = Pi_f X_f - X_init_f``.
+    ``w2 = ||W||_F^2``.
+    """
     F = B.shape[0]
-    X = (B @ C.T).reshape(F, 3, P)
-    res = Wf - Rf @ X                                          # (F, 2, P)
-    data = 0.5 * float(np.sum(res ** 2))
-    G = -(Rf.transpose(0, 2, 1) @ res).reshape(F, 3 * P)       # dE_data / dX#
+    Xs = B @ C.T                                               # X#, (F, 3P)
+    X = Xs.reshape(F, 3, -1)
+    PX = (Pi[:, :, 0, None] * X[:, None, 0, :] + Pi[:, :, 1, None] * X[:, None, 1, :]
+          + Pi[:, :, 2, None] * X[:, None, 2, :]).reshape(F, -1)
+    G = PX - Xi                                                # dE_data / dX#
+    data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
     bn, cn = np.sum(B ** 2, axis=0), np.sum(C ** 2, axis=0)
     E = data + 0.5 * float(reg @ (bn + cn))
     gB = G @ C + B * reg
     gC = G.T @ B + C * reg
     return E, data, gB, gC
+
+
+def _frame_preconditioner(C, Pi, reg):
+    """L_f^-1 (F, r, r) for H_f = L_f L_f', H_f = d^2 E / dB_f^2 at fixed C (the B-step
+    normal matrix: ``H_f[i, j] = <C_i, (I_P kron R_f'R_f) C_j> + reg_i delta_ij``)."""
+    r = C.shape[1]
+    P = C.shape[0] // 3
+    C3 = C.T.reshape(r, 3, P)
+    Hc = np.einsum("iap,jbp->abij", C3, C3)                   # (3, 3, r, r)
+    H = np.einsum("fab,abij->fij", Pi, Hc)
+    H[:, np.arange(r), np.arange(r)] += reg
+    tr = np.trace(H, axis1=1, axis2=2)[:, None, None] / r
+    H = H + 1e-12 * np.maximum(tr, 1e-300) * np.eye(r)      # guard singular frames
+    L = np.linalg.cholesky(H)
+    return np.linalg.inv(L)
 
 
 def _balance(B, C):
@@ -270,8 +311,8 @@ class BilinearShapeResult:
     params: dict = field(default_factory=dict)
 
 
-def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=1.0,
-                             mu=None, init="closed_form", gtol=1e-9, max_iter=3000,
+def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0.03,
+                             mu=None, init="closed_form", gtol=1e-6, max_iter=3000,
                              progress=None):
     """Minimise (*) (module docstring) to a stationary point by variable projection.
 
@@ -327,6 +368,7 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=1
     Pi = Rt @ Rf
     Xi3 = Rt @ Wf
     Xi = Xi3.reshape(F, 3 * P)
+    w2 = 1.0                                                   # ||Wn||_F^2
     sigma = np.linalg.svd(Xi, compute_uv=False)
     a = bilinear_weights(sigma, r, prior)
     noise = noise_level(Wn, K)
@@ -350,68 +392,79 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=1
 
     hist = {"cost": [], "data_term": [], "grad_norm": []}
 
-    def measure(B, C):
-        E, data, gB, gC = _objective(B, C, Wf, Rf, Xi, reg, P)
+    def measure(B, C, values=None):
+        E, data, gB, gC = _objective(B, C, Pi, Xi, w2, reg) if values is None else values
         g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
         rel = g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
         return E, data, rel
 
-    def record(B, C):
-        E, data, rel = measure(B, C)
+    def record(B, C, values=None):
+        E, data, rel = measure(B, C, values)
         hist["cost"].append(E)
         hist["data_term"].append(data)
         hist["grad_norm"].append(rel)
         return rel
 
     rel = record(B0, C0)
-    state = {"B": B0, "C": C0}
-
-    def fun(b):
-        B = b.reshape(F, r)
-        C = _c_step(B, Pi, Xi, reg)
-        E, _, gB, _ = _objective(B, C, Wf, Rf, Xi, reg, P)
-        state["B"], state["C"] = B, C
-        return E, gB.ravel()
+    state = {"B": B0}
 
     class _Done(Exception):
         pass
 
     n_iter = 0
     B, C = B0, C0
-    if rel > gtol and max_iter > 0:
-        # restart L-BFGS on balanced factors a few times (balancing changes B only,
-        # keeps X#, never raises E).
-        b = B0.ravel()
-        while n_iter < max_iter and rel > gtol:
-            def cb(xk):
-                nonlocal n_iter, rel
-                n_iter += 1
-                Bk = xk.reshape(F, r)
-                Ck = _c_step(Bk, Pi, Xi, reg)
-                rel = record(Bk, Ck)
-                if rel <= gtol or n_iter >= max_iter:
-                    raise _Done
+    # L-BFGS on the reduced objective f(B) = min_C E(B, C), in preconditioned variables
+    # z_f = L_f' B_f with L_f L_f' = H_f the per-frame Hessian of E in B_f at the current C
+    # (r x r). Restarted every `segment` iterations with a fresh preconditioner from
+    # balanced factors (balancing keeps X# and never raises E).
+    segment = 100
+    while rel > gtol and n_iter < max_iter:
+        Linv = _frame_preconditioner(C, Pi, reg)              # (F, r, r), L_f^-1
 
-            try:
-                out = scipy.optimize.minimize(
-                    fun, b, jac=True, method="L-BFGS-B", callback=cb,
-                    options=dict(maxiter=max_iter - n_iter, maxcor=20, gtol=0.0,
-                                 ftol=0.0, maxls=40))
-                b_end = out.x
-            except _Done:
-                b_end = state["B"].ravel()
-            B = b_end.reshape(F, r)
-            C = _c_step(B, Pi, Xi, reg)
-            B, C = _balance(B, C)
-            C = _c_step(B, Pi, Xi, reg)
-            b = B.ravel()
-            rel = measure(B, C)[2]
+        def to_B(z):
+            return np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
+
+        def fun(z):
+            Bz = to_B(z)
+            Cz = _c_step(Bz, Pi, Xi, reg)
+            vals = _objective(Bz, Cz, Pi, Xi, w2, reg)
+            state["last"] = (z.copy(), Bz, Cz, vals)
+            return vals[0], np.einsum("fij,fj->fi", Linv, vals[2]).ravel()
+
+        def cb(zk):
+            nonlocal n_iter, rel
+            n_iter += 1
+            z_last, Bk, Ck, vals = state["last"]
+            if not np.array_equal(z_last, zk):      # not the last evaluated point
+                Bk = to_B(zk)
+                Ck = _c_step(Bk, Pi, Xi, reg)
+                vals = None
+            state["B"] = Bk
+            rel = record(Bk, Ck, vals)
             if rel <= gtol or n_iter >= max_iter:
-                break
-            if "out" in dir() and not out.success and out.nit == 0:
-                break
+                raise _Done
+
+        n_before = n_iter
+        z0 = np.einsum("fji,fj->fi", np.linalg.inv(Linv), B).ravel()   # L_f' B_f
+        state["B"] = B
+        try:
+            out = scipy.optimize.minimize(
+                fun, z0, jac=True, method="L-BFGS-B", callback=cb,
+                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=20, gtol=0.0,
+                             ftol=0.0, maxls=40))
+            B = to_B(out.x)
+        except _Done:
+            B = state["B"]
+        B, C = _balance(B, _c_step(B, Pi, Xi, reg))
+        C = _c_step(B, Pi, Xi, reg)
+        rel = measure(B, C)[2]
+        if n_iter == n_before:                  # no progress possible (rounding level)
+            break
     B, C = _balance(B, C)
     E, data, rel = measure(B, C)
+    res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
+    E += 0.5 * float(np.sum(res ** 2)) - data                  # exact data term
+    data = 0.5 * float(np.sum(res ** 2))
     converged = rel <= gtol
     X = (B @ C.T).reshape(F, 3, P) * scale
     s_x = np.linalg.svd(B @ C.T, compute_uv=False)[:r]
