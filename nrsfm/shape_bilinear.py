@@ -35,6 +35,7 @@ low-rank non-rigid reconstruction", DICTA 2015), written here from the maths.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -312,8 +313,8 @@ class BilinearShapeResult:
 
 
 def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0.03,
-                             mu=None, init="closed_form", gtol=1e-6, max_iter=3000,
-                             progress=None):
+                             mu=None, min_mu=1e-5, init="closed_form", gtol=1e-6,
+                             max_iter=3000, progress=None):
     """Minimise (*) (module docstring) to a stationary point by variable projection.
 
     Parameters
@@ -331,6 +332,11 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
         ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (default 1).
     mu : float, optional
         Override ``mu`` (W's units).
+    min_mu : float
+        Used only when the rank-K fit is not unique (the closed form's (K+1)-th
+        eigenvalue is at rounding level, e.g. an exactly low-rank W whose cameras leave
+        depth ambiguous): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
+        issued. Measured on shark only (see ``docs/shape_stage.md``).
     init : {"closed_form", "rank_k"}
         Start from :func:`closed_form_shapes` or the rank-r truncation of X_init.
     gtol : float
@@ -351,6 +357,8 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
         raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {rank!r}")
     if init not in ("closed_form", "rank_k"):
         raise ValueError(f"init must be 'closed_form' or 'rank_k'; got {init!r}")
+    if not (np.isfinite(min_mu) and min_mu >= 0):
+        raise ValueError(f"min_mu must be non-negative; got {min_mu!r}")
     if not (np.isfinite(mu_factor) and mu_factor >= 0):
         raise ValueError(f"mu_factor must be non-negative; got {mu_factor!r}")
     if not (np.isfinite(gtol) and gtol >= 0):
@@ -378,14 +386,24 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
         if not (np.isfinite(mu) and mu >= 0):
             raise ValueError(f"mu must be non-negative; got {mu!r}")
         mu_n = float(mu) / scale
-    reg = mu_n * a
-
-    # start
+    # start; the closed form's (K+1)-th eigenvalue tells whether the rank-K fit is unique
+    gap = float("nan")
     if init == "closed_form" and r == K:
-        B0, _ = closed_form_coefficients(Wn, Rf, K)
+        B0, ev = closed_form_coefficients(Wn, Rf, K)
+        gap = float(ev[K]) if ev.size > K else float("nan")
     else:
-        U, s, Vt = np.linalg.svd(Xi, full_matrices=False)
-        B0 = U[:, :r] * np.sqrt(s[:r])
+        B0 = None
+    if not gap > 1e-12 and init == "closed_form" and r == K:
+        what = (f"the prior decides: mu raised to at least min_mu = {min_mu:g} ||W||_F"
+                if mu is None else "the result is one of many")
+        warnings.warn(f"the rank-{K} fit of W with these cameras is not unique (closed-form "
+                      f"nullspace gap {gap:.1e}); {what}", RuntimeWarning, stacklevel=2)
+        if mu is None:
+            mu_n = max(mu_n, min_mu)
+    reg = mu_n * a
+    if B0 is None:
+        U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
+        B0 = U[:, :r] * np.sqrt(sv[:r])
     B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
     C0 = _c_step(B0, Pi, Xi, reg)
     B0, C0 = _balance(B0, C0)
@@ -471,8 +489,8 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
     wnn = data + float(reg @ s_x)
     say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
         f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")
-    params = dict(prior=prior, K=K, rank=r, mu_factor=mu_factor, init=init, gtol=gtol,
-                  max_iter=int(max_iter), normalisation=scale)
+    params = dict(prior=prior, K=K, rank=r, mu_factor=mu_factor, min_mu=min_mu, init=init,
+                  gtol=gtol, max_iter=int(max_iter), normalisation=scale, nullspace_gap=gap)
     return BilinearShapeResult(
         shapes=X, X_init=Xi3 * scale, X_init_singular_values=sigma * scale,
         theta=reg * scale, weights=a, mu=mu_n * scale, noise=noise * scale,
