@@ -83,6 +83,13 @@ def closed_form_coefficients(W, R, K):
     """
     W, Rf, F, P, K = _check(W, R, K)
     U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
+    return _nullspace_coefficients(U, s, Rf, K)
+
+
+def _nullspace_coefficients(U, s, Rf, K):
+    """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
+    F = Rf.shape[0]
+    s = s / s[0]
     M = (U[:, :3 * K] * s[:3 * K]).reshape(F, 2, 3 * K)     # M_hat_f, (F, 2, 3K)
     # vec(M_f G) for G (3K, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
     MtM = np.einsum("fai,faj->ij", M, M)
@@ -153,8 +160,11 @@ def noise_level(W, K):
     W's units. Zero for exactly rank-3K W.
     """
     W = check_measurements(W)
-    F2, P = W.shape
-    s = np.linalg.svd(W, compute_uv=False)
+    return _noise_from_singular_values(np.linalg.svd(W, compute_uv=False), W.shape, K)
+
+
+def _noise_from_singular_values(s, shape, K):
+    F2, P = shape
     tail = float(np.sqrt(np.sum(s[3 * K:] ** 2)))
     dof = max((F2 - 3 * K) * (P - 3 * K), 1)
     return tail / math.sqrt(dof)
@@ -180,6 +190,14 @@ def bilinear_weights(sigma, r, prior):
 # --------------------------------------------------------------------------------------
 # steps
 # --------------------------------------------------------------------------------------
+
+def _singular_values(A):
+    """Singular values of A (m, n) from the Gram matrix of its shorter side (m^2 n flops;
+    the small ones lose relative accuracy, which the weights of (*) do not need)."""
+    G = A @ A.T if A.shape[0] <= A.shape[1] else A.T @ A
+    ev = np.linalg.eigvalsh(G)[::-1]
+    return np.sqrt(np.maximum(ev, 0.0))
+
 
 def _c_step(B, Pi, Xi, reg):
     """argmin_C E(B, C): one (3r x 3r) system shared by all points.
@@ -377,9 +395,10 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
     Xi3 = Rt @ Wf
     Xi = Xi3.reshape(F, 3 * P)
     w2 = 1.0                                                   # ||Wn||_F^2
-    sigma = np.linalg.svd(Xi, compute_uv=False)
+    sigma = _singular_values(Xi)
     a = bilinear_weights(sigma, r, prior)
-    noise = noise_level(Wn, K)
+    Uw, sw, _ = np.linalg.svd(Wn, full_matrices=False)        # one thin SVD of W
+    noise = _noise_from_singular_values(sw, Wn.shape, K)
     if mu is None:
         mu_n = mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P))
     else:
@@ -389,7 +408,7 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
     # start; the closed form's (K+1)-th eigenvalue tells whether the rank-K fit is unique
     gap = float("nan")
     if init == "closed_form" and r == K:
-        B0, ev = closed_form_coefficients(Wn, Rf, K)
+        B0, ev = _nullspace_coefficients(Uw, sw, Rf, K)
         gap = float(ev[K]) if ev.size > K else float("nan")
     else:
         B0 = None
@@ -485,7 +504,8 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
     data = 0.5 * float(np.sum(res ** 2))
     converged = rel <= gtol
     X = (B @ C.T).reshape(F, 3, P) * scale
-    s_x = np.linalg.svd(B @ C.T, compute_uv=False)[:r]
+    s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
+                        compute_uv=False)                      # sigma(B C'), r x r
     wnn = data + float(reg @ s_x)
     say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
         f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")

@@ -39,7 +39,7 @@ def test_psvt_is_the_proximal_point(N):
     for start in (Q, np.zeros_like(Q), rng.standard_normal(Q.shape)):
         res = minimize(lambda p: _partial_objective(p.reshape(Q.shape), Q, N, tau),
                        start.ravel(), method="Powell", options=dict(xtol=1e-9, ftol=1e-12,
-                                                                    maxfev=40000))
+                                                                    maxfev=8000))
         assert res.fun >= best - 1e-7
 
 
