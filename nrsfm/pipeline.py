@@ -254,7 +254,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         timings["shape"] = time.perf_counter() - t0
 
     params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
-                  shape_prior=prior, shape_solver=shape_solver, rotation_options=dict(rotation_options or {}),
+                  shape_prior=prior, shape_solver=shape_solver,
+                  rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
                   rotations_given=rotation_stage is None)
     return Reconstruction(rotations=rotations, shapes=shapes * scale, method=method, K=K,

@@ -197,8 +197,9 @@ def test_optimize_shapes_bad_input(change):
 
 # ------------------------------------------------------------------ bilinear solver, closed form
 from nrsfm.shape import SHAPE_SOLVERS, solve_shapes  # noqa: E402
-from nrsfm.shape_bilinear import (_objective, bilinear_weights, closed_form_coefficients,  # noqa: E402
-                                  closed_form_shapes, noise_level, optimize_shapes_bilinear)
+from nrsfm.shape_bilinear import (_objective, bilinear_weights,  # noqa: E402
+                                  closed_form_coefficients, closed_form_shapes, noise_level,
+                                  optimize_shapes_bilinear)
 
 
 @pytest.mark.parametrize("K", range(1, 9))
@@ -258,7 +259,8 @@ def test_bilinear_gradient_matches_finite_differences():
             Mm[idx] -= h
             args = (Mp, C) if M is B else (B, Mp)
             argm = (Mm, C) if M is B else (B, Mm)
-            fd = (_objective(*args, Pi, Xi, w2, reg)[0] - _objective(*argm, Pi, Xi, w2, reg)[0]) / (2 * h)
+            fd = (_objective(*args, Pi, Xi, w2, reg)[0]
+                  - _objective(*argm, Pi, Xi, w2, reg)[0]) / (2 * h)
             assert fd == pytest.approx(g[idx], rel=1e-5, abs=1e-6)
 
 
