@@ -26,8 +26,9 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
 * Solver: variable projection. C is eliminated in closed form (one 3r x 3r normal system
   shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS with its exact
   gradient, preconditioned per frame, from the closed-form rank-K start. Each iteration
-  is O(F P r); nothing F x F or 2F x 3F is formed and no SVD is taken. Stops when the
-  relative gradient norm is below ``gtol``.
+  is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
+  thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
+  when the relative gradient norm is below ``gtol``.
 
 Settings and measurements: ``docs/shape_stage.md``.
 
@@ -48,8 +49,9 @@ import scipy.optimize
 
 from ._validation import check_measurements, check_rotations
 
-__all__ = ["BilinearShapeResult", "bilinear_weights", "closed_form_shapes",
-           "noise_level", "optimize_shapes_bilinear"]
+__all__ = ["BilinearShapeResult", "bilinear_weights", "closed_form_coefficients",
+           "closed_form_result", "closed_form_shapes", "noise_level",
+           "optimize_shapes_bilinear"]
 
 
 def _check(W, R, K):
