@@ -23,6 +23,12 @@ Sections (one BLAS thread; the figures are printed, nothing is asserted):
 ``dense``      a K = 1 sequence of 30,000 points and 100 frames: time and peak memory of
                the bilinear solver (the dense regime).
 
+The ADMM's own study (not run by default; ground-truth rotations, drink pickup yoga
+stretch): ``priors`` (organic / weighted / nuclear / pseudo-inverse beside the published
+figures), ``N`` (paper Fig. 3d), ``admm_scale`` (its scale invariance through
+``reconstruct`` and its sensitivity to the normalised scale), ``perturb`` (ground-truth
+cameras perturbed by random or smooth rotations of 0.5 - 8 degrees).
+
 Published figures come from ``nrsfm.published``.
 """
 
@@ -34,18 +40,29 @@ import resource
 import time
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 from threadpoolctl import threadpool_limits
 
 import data_tools as dt
 import nrsfm
 import nrsfm.scale
-from nrsfm.metrics import e3d
+from nrsfm.metrics import e3d, rotation_error
 from nrsfm.published import published_value
-from nrsfm.shape import solve_shapes
+from nrsfm.scale import normalization_scale
+from nrsfm.shape import optimize_shapes, solve_shapes
 from nrsfm.shape_bilinear import closed_form_shapes
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
 SOLVERS = ("admm", "bilinear")
+PRIOR_METHOD = {"organic": "organic", "weighted": "wnn", "nuclear": "bmm",
+                "pseudo-inv": "pseudo_inverse"}
+PAPER_COLUMN = {"organic": "ours", "weighted": "R-BMM", "nuclear": "BMM"}
+
+
+def _f(x, nd=4):
+    return "   -  " if x is None else f"{x:.{nd}f}"
+
+
 
 
 def _gt_e3d(seq, solver, W=None):
@@ -154,6 +171,107 @@ def section_stability(mocap, solvers, names, draws=4):
               f"<= 1.10 x paper on {int(np.sum(r <= 1.10))} of {r.size}")
 
 
+# ---- the ADMM's own study (priors, N, its scale rule, perturbed cameras) ----
+
+def section_priors(seqs):
+    print("\n== ADMM priors, ground-truth rotations (nrsfm.reconstruct(W, K, rotations=R_gt, "
+          "method=...)) ==")
+    head = f"{'seq':8s} {'K':>3s} " + " ".join(f"{p:>10s}" for p in PRIOR_METHOD)
+    head += "   | paper (estimated rotations): " + " ".join(
+            f"{PAPER_COLUMN[p]:>7s}" for p in ("organic", "weighted", "nuclear"))
+    print(head)
+    for name, seq in seqs.items():
+        vals = []
+        for prior, method in PRIOR_METHOD.items():
+            rec = nrsfm.reconstruct(seq.W, seq.K, method=method, rotations=seq.rotations)
+            vals.append(e3d(rec.shapes, seq.shapes))
+        line = f"{name:8s} {seq.K:3d} " + " ".join(f"{v:10.4f}" for v in vals)
+        line += "   |                              " + " ".join(
+                f"{_f(published_value('mocap_e3d', PAPER_COLUMN[p], name)):>7s}"
+                for p in ("organic", "weighted", "nuclear"))
+        print(line, flush=True)
+
+
+def section_N(seqs):
+    print("\n== N ablation (paper Fig. 3d): organic weights, first N singular values free ==")
+    Ns = range(6)
+    print(f"{'seq':8s} " + " ".join(f"{'N=' + str(n):>8s}" for n in Ns))
+    for name in AKHTER4:
+        seq = seqs[name]
+        vals = [e3d(nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations,
+                                      shape_options=dict(N=n)).shapes, seq.shapes)
+                for n in Ns]
+        print(f"{name:8s} " + " ".join(f"{v:8.4f}" for v in vals), flush=True)
+
+
+def section_admm_scale(seqs):
+    print("\n== scale invariance: nrsfm.reconstruct(c * W, K, rotations=R_gt) ==")
+    cs = (1e-3, 1.0, 1e3)
+    print(f"{'seq':8s} " + " ".join(f"{'c=' + format(c, 'g'):>9s}" for c in cs)
+          + "   max diff")
+    for name in AKHTER4:
+        seq = seqs[name]
+        vals = [e3d(nrsfm.reconstruct(seq.W * c, seq.K, rotations=seq.rotations).shapes,
+                    seq.shapes) for c in cs]
+        print(f"{name:8s} " + " ".join(f"{v:9.6f}" for v in vals)
+              + f"   {max(vals) - min(vals):.1e}", flush=True)
+    print("\n== sensitivity: W / (m * normalization_scale(W)), organic prior ==")
+    ms = (0.5, 0.7, 0.85, 1.0, 1.2, 1.4, 2.0)
+    print(f"{'seq':8s} " + " ".join(f"{'m=' + format(m, 'g'):>8s}" for m in ms))
+    for name in AKHTER4:
+        seq = seqs[name]
+        s = normalization_scale(seq.W)
+        vals = [e3d(optimize_shapes(seq.W / (m * s), seq.rotations, seq.K).shapes, seq.shapes)
+                for m in ms]
+        print(f"{name:8s} " + " ".join(f"{v:8.4f}" for v in vals), flush=True)
+
+
+def perturbed(R, deg, seed):
+    rng = np.random.default_rng(seed)
+    axis = rng.standard_normal((R.shape[0], 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    return R @ Rotation.from_rotvec(axis * np.deg2rad(deg)).as_matrix()
+
+
+def smoothly_perturbed(R, deg, seed):
+    """R_f E_f with E_f = exp(v_f), v_f three sinusoids (period F/3, random phases)."""
+    rng = np.random.default_rng(seed)
+    F = R.shape[0]
+    t = np.arange(F)
+    v = np.stack([np.sin(2 * np.pi * t / (F / 3) + p) for p in rng.uniform(0, 2 * np.pi, 3)],
+                 axis=1)
+    return R @ Rotation.from_rotvec(v * np.deg2rad(deg)).as_matrix()
+
+
+def section_perturb(seqs, seeds=2):
+    degs = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0)
+    for kind, fn in (("independent random", perturbed), ("smooth (sinusoidal)",
+                                                           smoothly_perturbed)):
+        _perturb_table(seqs, degs, kind, fn, seeds)
+
+
+def _perturb_table(seqs, degs, kind, fn, seeds):
+    print(f"\n== ground-truth rotations perturbed per frame by {kind} rotations of the given "
+          f"size (mean of {seeds} seeds); organic prior ==")
+    print(f"{'seq':8s} " + " ".join(f"{format(g, 'g') + ' deg':>9s}" for g in degs))
+    for name in AKHTER4:
+        seq = seqs[name]
+        s = normalization_scale(seq.W)
+        e_vals, r_vals = [], []
+        for g in degs:
+            runs = [0] if g == 0 else range(seeds)
+            e, er = [], []
+            for seed in runs:
+                R = fn(seq.rotations, g, seed)
+                e.append(e3d(optimize_shapes(seq.W / s, R, seq.K).shapes, seq.shapes))
+                er.append(rotation_error(R, seq.rotations))
+            e_vals.append(np.mean(e))
+            r_vals.append(np.mean(er))
+        print(f"{name:8s} " + " ".join(f"{v:9.4f}" for v in e_vals), flush=True)
+        print(f"{'  e_R':8s} " + " ".join(f"{v:9.4f}" for v in r_vals), flush=True)
+
+
+
 def section_dense():
     print("\n== dense: K = 1, F = 100, P = 30,000, ground-truth rotations, bilinear ==")
     seq = dt.make_synthetic(F=100, P=30000, K=1, motion="smooth", noise=0.01, seed=0)
@@ -173,12 +291,14 @@ def main(argv=None):
                     help="folder holding mocap/ (default: $NRSFM_DATA)")
     ap.add_argument("--sections", nargs="+",
                     default=["synthetic", "gt", "noise", "time", "dense"],
-                    choices=["synthetic", "gt", "noise", "time", "stability", "dense"])
+                    choices=["synthetic", "gt", "noise", "time", "stability", "dense",
+                             "priors", "N", "admm_scale", "perturb"])
     ap.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=list(SOLVERS))
     ap.add_argument("--sequences", nargs="+", default=list(dt.MOCAP_NAMES),
                     help="sequences for the stability section")
     args = ap.parse_args(argv)
-    needs_data = set(args.sections) & {"gt", "noise", "time", "stability"}
+    needs_data = set(args.sections) & {"gt", "noise", "time", "stability", "priors", "N",
+                                       "admm_scale", "perturb"}
     if needs_data and not args.data:
         ap.error("no data folder: pass --data or set NRSFM_DATA")
     mocap = os.path.join(args.data, "mocap") if args.data else None
@@ -197,6 +317,14 @@ def main(argv=None):
                 section_stability(mocap, args.solvers, args.sequences)
             elif sec == "dense":
                 section_dense()
+            elif sec == "priors":
+                section_priors(seqs)
+            elif sec == "N":
+                section_N(seqs)
+            elif sec == "admm_scale":
+                section_admm_scale(seqs)
+            elif sec == "perturb":
+                section_perturb(seqs)
 
 
 if __name__ == "__main__":
