@@ -161,7 +161,7 @@ def _progress_printer(progress):
 
 
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, progress=False, blas_thread_limit=1):
+                shape_options=None, shape_solver="admm", progress=False, blas_thread_limit=1):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -182,8 +182,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     seed : int
         Seed for every random choice (results are deterministic for a given seed).
     rotation_options, shape_options : dict, optional
-        Passed to :func:`nrsfm.rotations.estimate_rotations` and
-        :func:`nrsfm.shape.optimize_shapes`.
+        Passed to :func:`nrsfm.rotations.estimate_rotations` and to the shape solver.
+    shape_solver : {"admm", "bilinear", "closed_form"}
+        ``admm`` (default): the paper's continuation ADMM,
+        :func:`nrsfm.shape.optimize_shapes`; ``bilinear``: the factored weighted nuclear
+        norm minimised to a stationary point,
+        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear`; ``closed_form``: the exact
+        rank-K solution, :func:`nrsfm.shape_bilinear.closed_form_result` (no prior). See
+        ``docs/shape_stage.md`` for the measurements behind the default.
     progress : bool or callable
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None
@@ -200,6 +206,11 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
+    from .shape import SHAPE_SOLVERS
+
+    if shape_solver not in SHAPE_SOLVERS:
+        raise ValueError(f"unknown shape_solver {shape_solver!r}; expected one of "
+                         f"{list(SHAPE_SOLVERS)}")
     W = check_measurements(W)
     F, P = W.shape[0] // 2, W.shape[1]
     K = check_K(K, F, P)
@@ -241,15 +252,18 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
             X_init = pseudo_inverse_shapes(Wn, rotations)
             shapes = truncate_rank(X_init, K)
         else:
-            from .shape import optimize_shapes
+            from .shape import solve_shapes
 
-            shape_stage = optimize_shapes(Wn, rotations, K, prior=prior, progress=say,
-                                          **(shape_options or {}))
+            # Wn = W / scale: the ADMM's constants assume that scale (nrsfm.scale); the
+            # bilinear and closed-form solvers are scale-free, so it does not matter to them.
+            shape_stage = solve_shapes(Wn, rotations, K, prior=prior, solver=shape_solver,
+                                       progress=say, **(shape_options or {}))
             X_init, shapes = shape_stage.X_init, shape_stage.shapes
         timings["shape"] = time.perf_counter() - t0
 
     params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
-                  shape_prior=prior, rotation_options=dict(rotation_options or {}),
+                  shape_prior=prior, shape_solver=shape_solver,
+                  rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
                   rotations_given=rotation_stage is None)
     shapes_out, X_init_out = (shapes * s) * p2, (X_init * s) * p2

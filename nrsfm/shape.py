@@ -1,44 +1,26 @@
-"""Shape stage (paper Sec. 3.2): pseudo-inverse shape and the low-rank shape optimisation.
+"""Shape stage (paper Sec. 3.2): pseudo-inverse shape and the paper's continuation ADMM.
 
 Notation: ``X`` is the per-frame shape, (F, 3, P); ``X#`` (``X_sharp``) its reshuffle
 Phi(X), (F, 3P), whose row f is ``[x-coords, y-coords, z-coords]`` of frame f's P points.
 
-The optimisation (paper Eq. 8, 10) is
+The paper's problem (Eq. 8, 10) is
 
     minimise_{X, X#}  1/2 ||W - R X||_F^2 + mu ||X#||_{r=N, theta}   s.t.  X# = Phi(X)
 
-with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)`` (a partial sum of weighted
-singular values), solved by ADMM (Eq. 11-14) with the partial singular value thresholding
-(PSVT) operator of Oh et al. for the X# step. Three priors share the same machinery:
+with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)``, solved by ADMM (Eq. 11-14)
+with the partial singular value thresholding (PSVT) operator of Oh et al. for the X# step
+(:func:`optimize_shapes`, ``shape_solver="admm"``). Three priors share the machinery:
 
 ``organic``  (the paper): N = 1, theta_i = xi / (sigma_i(X_init#) + gamma) (Eq. 9).
 ``weighted`` (R-BMM-style baseline): N = 0, the same weights on every singular value.
-``nuclear``  (BMM's shape model): N = 0, equal weights theta_i = c for every i, with c
-             chosen so that X_init pays the same penalty as under the weighted norm:
-             ``c = sum_i theta_i sigma_i / sum_i sigma_i`` (theta from Eq. 9), mu = 1.
-             Measured with ground-truth rotations (row std 1.2): e3d drink/pickup/yoga/
-             stretch 0.012/0.027/0.019/0.023; the weakest organic weight theta_1 for all
-             values gives 0.17/0.19/0.19/0.13 (under-regularised), the median weight
-             0.024/0.061/0.13/0.050 (over-regularised).
+``nuclear``  (BMM's shape model): N = 0, one weight ``c = sum_i theta_i sigma_i /
+             sum_i sigma_i`` for every singular value (X_init pays the same penalty).
 
-Open details decided by measurement (``benchmarks/shape_study.py``, ground-truth rotations
-on the four Akhter sequences): see :func:`optimize_shapes` ("Notes").
-
-Findings (``benchmarks/shape_study.py``):
-
-* Better rotations do give better shapes: perturbing the ground-truth cameras by
-  independent random rotations raises e3d monotonically on drink, pickup, yoga and stretch
-  (e.g. yoga .0129 / .0142 / .0175 / .0224 / .0372 / .0530 at 0 / 0.5 / 1 / 2 / 4 / 8
-  degrees). Errors that vary smoothly over time cost far less (yoga .0192 at 8 degrees,
-  e_R .17), because a slowly varying camera error is absorbed by the shape sequence
-  without raising its rank much, and e3d aligns every frame separately. The estimated
-  rotations' errors are of that kind, which is why e_R alone does not rank them: e3d
-  with the estimated cameras (yoga .0122, e_R .096) is within the ADMM's path noise of the
-  ground-truth figure (.0129); see :mod:`nrsfm.scale` for that noise (stretch moves
-  between ~.012 and ~.015 when the scale changes by a few percent).
-* N >= 4 breaks down (e.g. pickup .19 at N = 4): the fourth singular value of X_init# is
-  the planar pseudo-inverse's artefact (0.15 sigma_1 left free, against 0.03 with N = 3),
-  and leaving it unpenalised freezes the planar solution.
+The ADMM is a continuation (rho grows 10 % per iteration): its answer is where the path
+freezes, not a minimiser of Eq. (10), and its constants assume the scale of
+:mod:`nrsfm.scale`. The alternatives, a factored objective minimised to a verified
+stationary point and the closed-form rank-K solution, are in :mod:`nrsfm.shape_bilinear`;
+:func:`solve_shapes` runs any of them. Measurements: ``docs/shape_stage.md``.
 """
 
 from __future__ import annotations
@@ -50,8 +32,11 @@ import numpy as np
 
 from ._validation import check_measurements, check_rotations
 
-__all__ = ["PRIORS", "ShapeResult", "optimize_shapes", "phi", "phi_inv", "psvt",
-           "pseudo_inverse_shapes", "shape_weights", "truncate_rank"]
+__all__ = ["PRIORS", "SHAPE_SOLVERS", "ShapeResult", "optimize_shapes", "phi", "phi_inv",
+           "psvt", "pseudo_inverse_shapes", "shape_weights", "solve_shapes", "truncate_rank"]
+
+#: Shape solvers understood by :func:`solve_shapes` (and ``reconstruct(shape_solver=...)``).
+SHAPE_SOLVERS = ("admm", "bilinear", "closed_form")
 
 #: Shape priors understood by :func:`optimize_shapes`: prior -> default N.
 PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
@@ -330,21 +315,8 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
 
     ``Y`` starts at zero.
 
-    Open details, decided by measurement with ground-truth rotations on drink, pickup,
-    yoga and stretch (W normalised by :func:`nrsfm.scale.normalization_scale`):
-
-    * ``output``: X and Phi^-1(X#) agree to ``eps`` at the stop (the ADMM always reaches
-      the residual 1e-10 after ~160 iterations, rho ~ 300, before rho_max); e3d identical
-      to 4 digits. X is returned (it is the variable that fits the data exactly in the
-      image plane).
-    * ``init``: rank-K truncation of X_init (as Dai et al.'s code) or X_init itself
-      differ by at most ~1e-3 in e3d; over 7 scales (row std 0.8 - 1.4) the mean e3d was
-      drink .0079/.0076, pickup .0138/.0141, yoga .0129/.0129, stretch .0131/.0138
-      (rank-K/full). Default ``rank_k``.
-    * stopping: running on to rho_max (``eps=0``) gives identical shapes: once rho is
-      large the iterates freeze, so the shape is decided along the continuation path.
-    * ``lam = 1.05`` is slightly better on yoga (.0124) but doubles the run time; the
-      paper's 1.1 is kept.
+    Open details (output, init, stopping, lam) were decided by measurement; see
+    ``docs/shape_stage.md``.
     """
     if prior not in PRIORS:
         raise ValueError(f"unknown shape prior {prior!r}; expected one of {sorted(PRIORS)}")
@@ -430,3 +402,38 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
                        theta=theta, N=N, prior=prior,
                        history={k: np.asarray(v) for k, v in hist.items()},
                        n_iter=n_iter, converged=converged, params=params)
+
+
+def solve_shapes(W, R, K, prior="organic", solver="admm", **options):
+    """Run one of the shape solvers on ``(W, R)``.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements (for ``admm`` in the units of :mod:`nrsfm.scale`; the
+        other solvers are scale-free).
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+    prior : {"organic", "weighted", "nuclear"}
+        Ignored by ``closed_form`` (an exact rank-K fit has no prior).
+    solver : {"admm", "bilinear", "closed_form"}
+        :func:`optimize_shapes` (the paper's continuation ADMM),
+        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear` or
+        :func:`nrsfm.shape_bilinear.closed_form_result`.
+    **options
+        Passed to the solver.
+
+    Returns
+    -------
+    ShapeResult or BilinearShapeResult
+    """
+    if solver == "admm":
+        return optimize_shapes(W, R, K, prior=prior, **options)
+    from . import shape_bilinear
+
+    if solver == "bilinear":
+        return shape_bilinear.optimize_shapes_bilinear(W, R, K, prior=prior, **options)
+    if solver == "closed_form":
+        options.pop("progress", None)
+        return shape_bilinear.closed_form_result(W, R, K, **options)
+    raise ValueError(f"unknown shape solver {solver!r}; expected one of {list(SHAPE_SOLVERS)}")

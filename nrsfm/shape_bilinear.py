@@ -1,0 +1,527 @@
+"""Shape stage by a bilinear (factored) weighted-nuclear-norm objective, and the closed form.
+
+Given cameras ``R`` and centred measurements ``W``, the shape ``X`` (F, 3, P) with
+``X# = Phi(X) = B C'`` (B: F x r, C: 3P x r) minimises
+
+    E(B, C) = 1/2 sum_f ||W_f - R_f X_f||_F^2 + mu/2 sum_i a_i (|B_i|^2 + |C_i|^2)     (*)
+
+For non-decreasing weights ``a_1 <= a_2 <= ...`` the minimum of the regulariser over all
+factorisations of a given ``X#`` is the weighted nuclear norm ``mu sum_i a_i sigma_i(X#)``
+(Iglesias, Olsson, Oernhag, "Accurate optimization of weighted nuclear norm for non-rigid
+structure from motion", ECCV 2020, Sec. 3), so (*) is the paper's Eq. (8)/(10) restricted to
+rank r, in a smooth form whose stationary points can be verified by their gradient.
+
+* Weights ``a`` (dimensionless): ``organic`` ``a_1 = 0`` (the partial sum, N = 1, paper
+  Eq. 10) and ``a_i = sigma_1 / sigma_i`` of ``X_init#`` (Eq. 9 up to the common factor,
+  which goes into ``mu``); ``weighted`` the same ratios with ``a_1 = 1`` (Eq. 8); ``nuclear``
+  ``a_i = 1`` (Eq. 7).
+* Balance from W alone: ``mu = mu_factor * noise * (sqrt(F) + sqrt(3P))``, ``noise`` the
+  RMS of W beyond its rank-3K approximation (:func:`noise_level`), ``mu_factor = 0.03``
+  (measured; 1 would be the threshold that removes Gaussian noise of that level and is far
+  too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the
+  exact rank-K fit. If that fit is not unique (closed-form nullspace gap at rounding
+  level) a RuntimeWarning is issued and ``mu`` raised to ``min_mu ||W||_F``.
+* Scale-free: W is divided by ``||W||_F`` inside and ``mu`` is proportional to the scale
+  of W, so the minimiser for ``c W`` is ``c`` times that for ``W``.
+* Solver: variable projection. C is eliminated in closed form (one 3r x 3r normal system
+  shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS with its exact
+  gradient, preconditioned per frame, from the closed-form rank-K start. Each iteration
+  is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
+  thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
+  when the relative gradient norm is below ``gtol``.
+
+Settings and measurements: ``docs/shape_stage.md``.
+
+:func:`closed_form_shapes` is the closed-form rank-K solution of ``R X = W`` (the
+nullspace method of Valmadre, Sridharan, Denman, Fookes, Lucey, "Closed-form solutions for
+low-rank non-rigid reconstruction", DICTA 2015), written here from the maths.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+from ._validation import check_measurements, check_rotations
+
+__all__ = ["BilinearShapeResult", "bilinear_weights", "closed_form_coefficients",
+           "closed_form_result", "closed_form_shapes", "noise_level",
+           "optimize_shapes_bilinear"]
+
+
+def _check(W, R, K):
+    W = check_measurements(W)
+    F, P = W.shape[0] // 2, W.shape[1]
+    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
+    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
+        raise ValueError(f"K must be a positive integer; got {K!r}")
+    K = int(K)
+    if 3 * K > min(2 * F, P):
+        raise ValueError(f"K={K} too large for F={F}, P={P}: need 3K <= min(2F, P)")
+    return W, Rf, F, P, K
+
+
+# --------------------------------------------------------------------------------------
+# closed form (nullspace) rank-K solution
+# --------------------------------------------------------------------------------------
+
+def closed_form_coefficients(W, R, K):
+    """Rank-K shape coefficients B (F, K) by the nullspace method (Valmadre et al. 2015).
+
+    With ``W ~ M_hat B_hat`` (rank 3K SVD, ``M_hat`` 2F x 3K), an exact rank-K shape
+    ``X_f = sum_k b_fk S_k`` means ``M_hat_f G_k = b_fk R_f`` for a 3K x 3 triplet
+    ``G_k`` per basis. This is linear and homogeneous in ``(G_k, b_1k .. b_Fk)``; eliminating
+    ``b_fk = <R_f, M_hat_f G_k> / 2`` leaves ``sum_f ||(I - r_f r_f' / 2) vec(M_hat_f G)||^2``,
+    a 9K x 9K quadratic form whose K-dimensional nullspace holds every triplet. Its K
+    smallest eigenvectors give B (up to an invertible K x K mixing, which does not change X).
+
+    Returns
+    -------
+    B : (F, K) ndarray
+    eigenvalues : (K + 1,) ndarray
+        The K + 1 smallest eigenvalues of the quadratic form (relative to the largest):
+        K near-zero values and a clear gap mean the rank-K solution is determined.
+    """
+    W, Rf, F, P, K = _check(W, R, K)
+    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
+    return _nullspace_coefficients(U, s, Rf, K)
+
+
+def _nullspace_coefficients(U, s, Rf, K):
+    """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
+    F = Rf.shape[0]
+    s = s / s[0]
+    M = (U[:, :3 * K] * s[:3 * K]).reshape(F, 2, 3 * K)     # M_hat_f, (F, 2, 3K)
+    # vec(M_f G) for G (3K, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
+    MtM = np.einsum("fai,faj->ij", M, M)
+    Q = np.kron(MtM, np.eye(3))
+    # A_f' r_f = vec(M_f' R_f) (3K x 3)
+    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 9 * K)
+    Q -= 0.5 * v.T @ v
+    evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
+    G = evecs[:, :K]                                          # (9K, K)
+    B = 0.5 * v @ G                                           # b_fk = <R_f, M_f G_k> / 2
+    return B, evals[:K + 1] / max(evals[-1], 1e-300)
+
+
+def closed_form_result(W, R, K, **options):
+    """The closed-form rank-K shape as a shape-stage result (``shape_solver="closed_form"``).
+
+    :func:`optimize_shapes_bilinear` with ``mu = 0`` and no iterations: B from
+    :func:`closed_form_coefficients`, C by least squares; the result reports the data term
+    and the relative gradient norm of the plain rank-K fit at that point. No prior.
+    """
+    options = dict(options)
+    for key in ("mu", "mu_factor", "max_iter", "init", "rank"):
+        if key in options:
+            raise ValueError(f"closed_form takes no {key!r} option")
+    res = optimize_shapes_bilinear(W, R, K, prior="nuclear", mu=0.0, max_iter=0,
+                                   init="closed_form", **options)
+    res.prior = "none"
+    res.params["prior"] = "none"
+    return res
+
+
+def closed_form_shapes(W, R, K):
+    """Closed-form rank-K shape: coefficients by :func:`closed_form_coefficients`, bases
+    by linear least squares.
+
+    Exact (to rounding) when W is exactly ``R X`` with ``rank X# = K`` and the solution is
+    unique; otherwise a least-squares approximation, used as a starting point.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements.
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+
+    Returns
+    -------
+    X : (F, 3, P) ndarray
+    """
+    W, Rf, F, P, K = _check(W, R, K)
+    B, _ = closed_form_coefficients(W, Rf, K)
+    B = B / np.linalg.norm(B, axis=0)
+    Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    C = _c_step(B, Pi, Xi, np.zeros(K))
+    return (B @ C.T).reshape(F, 3, P)
+
+
+# --------------------------------------------------------------------------------------
+# noise level and weights
+# --------------------------------------------------------------------------------------
+
+def noise_level(W, K):
+    """RMS of W beyond its rank-3K approximation, per degree of freedom.
+
+    ``||W - W_3K||_F / sqrt((2F - 3K)(P - 3K))``: for W = low rank + i.i.d. noise of std s
+    this estimates s (slightly low: the rank-3K fit absorbs some noise). From W alone; in
+    W's units. Zero for exactly rank-3K W.
+    """
+    W = check_measurements(W)
+    return _noise_from_singular_values(np.linalg.svd(W, compute_uv=False), W.shape, K)
+
+
+def _noise_from_singular_values(s, shape, K):
+    F2, P = shape
+    tail = float(np.sqrt(np.sum(s[3 * K:] ** 2)))
+    dof = max((F2 - 3 * K) * (P - 3 * K), 1)
+    return tail / math.sqrt(dof)
+
+
+def bilinear_weights(sigma, r, prior):
+    """Dimensionless weights ``a`` (r,) of (*) from the singular values of ``X_init#``.
+
+    ``organic``: 0, sigma_1/sigma_2, ..., sigma_1/sigma_r; ``weighted``: sigma_1/sigma_i;
+    ``nuclear``: ones. Non-decreasing in every case.
+    """
+    sigma = np.asarray(sigma, dtype=float)[:r]
+    if prior == "nuclear":
+        return np.ones(r)
+    a = sigma[0] / np.maximum(sigma, sigma[0] * 1e-12)
+    if prior == "organic":
+        a[0] = 0.0
+    elif prior != "weighted":
+        raise ValueError(f"unknown shape prior {prior!r}")
+    return a
+
+
+# --------------------------------------------------------------------------------------
+# steps
+# --------------------------------------------------------------------------------------
+
+def _singular_values(A):
+    """Singular values of A (m, n) from the Gram matrix of its shorter side (m^2 n flops;
+    the small ones lose relative accuracy, which the weights of (*) do not need)."""
+    G = A @ A.T if A.shape[0] <= A.shape[1] else A.T @ A
+    ev = np.linalg.eigvalsh(G)[::-1]
+    return np.sqrt(np.maximum(ev, 0.0))
+
+
+def _c_step(B, Pi, Xi, reg):
+    """argmin_C E(B, C): one (3r x 3r) system shared by all points.
+
+    For point p with unknowns c_p = [C_i(:, p)]_i (3r), the data term is
+    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``; normal matrix
+    ``sum_f (B_f'B_f) kron (R_f'R_f) + diag(reg kron 1_3)``, right-hand side
+    ``sum_f B_f' kron X_init_f``.
+    """
+    F, r = B.shape
+    P = Xi.shape[1] // 3
+    BB = (B[:, :, None] * B[:, None, :]).reshape(F, r * r)
+    N = (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3).reshape(3 * r, 3 * r)
+    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
+    rhs = (B.T @ Xi).reshape(3 * r, P)
+    try:
+        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
+                                   check_finite=False)
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        c = np.linalg.lstsq(N, rhs, rcond=None)[0]
+    return c.reshape(r, 3 * P).T                              # (3P, r)
+
+
+def _objective(B, C, Pi, Xi, w2, reg):
+    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC).
+
+    With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
+    <X_f, Pi_f X_f>`` (``Pi_f = R_f'R_f``), and ``dE_data / dX_f = Pi_f X_f - X_init_f``.
+    ``w2 = ||W||_F^2``.
+    """
+    F = B.shape[0]
+    Xs = B @ C.T                                               # X#, (F, 3P)
+    X = Xs.reshape(F, 3, -1)
+    PX = (Pi[:, :, 0, None] * X[:, None, 0, :] + Pi[:, :, 1, None] * X[:, None, 1, :]
+          + Pi[:, :, 2, None] * X[:, None, 2, :]).reshape(F, -1)
+    G = PX - Xi                                                # dE_data / dX#
+    data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
+    bn, cn = np.sum(B ** 2, axis=0), np.sum(C ** 2, axis=0)
+    E = data + 0.5 * float(reg @ (bn + cn))
+    gB = G @ C + B * reg
+    gC = G.T @ B + C * reg
+    return E, data, gB, gC
+
+
+def _frame_preconditioner(C, Pi, reg):
+    """L_f^-1 (F, r, r) for H_f = L_f L_f', H_f = d^2 E / dB_f^2 at fixed C (the B-step
+    normal matrix: ``H_f[i, j] = <C_i, (I_P kron R_f'R_f) C_j> + reg_i delta_ij``)."""
+    r = C.shape[1]
+    P = C.shape[0] // 3
+    C3 = C.T.reshape(r, 3, P)
+    Hc = np.einsum("iap,jbp->abij", C3, C3)                   # (3, 3, r, r)
+    H = np.einsum("fab,abij->fij", Pi, Hc)
+    H[:, np.arange(r), np.arange(r)] += reg
+    tr = np.trace(H, axis1=1, axis2=2)[:, None, None] / r
+    H = H + 1e-12 * np.maximum(tr, 1e-300) * np.eye(r)      # guard singular frames
+    L = np.linalg.cholesky(H)
+    return np.linalg.inv(L)
+
+
+def _balance(B, C):
+    """Rescale B_i, C_i to equal norms (X# unchanged, regulariser not increased)."""
+    bn = np.linalg.norm(B, axis=0)
+    cn = np.linalg.norm(C, axis=0)
+    ok = (bn > 0) & (cn > 0)
+    t = np.ones_like(bn)
+    t[ok] = np.sqrt(cn[ok] / bn[ok])
+    return B * t, C / t
+
+
+# --------------------------------------------------------------------------------------
+# solver
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class BilinearShapeResult:
+    """Result of :func:`optimize_shapes_bilinear`.
+
+    Attributes
+    ----------
+    shapes : (F, 3, P) ndarray
+        ``Phi^-1(B C')`` in the units of the W given.
+    X_init : (F, 3, P) ndarray
+        Pseudo-inverse shape ``pinv(R_f) W_f``.
+    X_init_singular_values : (min(F, 3P),) ndarray
+    theta : (r,) ndarray
+        The weights ``mu a_i`` of (*) (W's units).
+    weights : (r,) ndarray
+        Dimensionless ``a``.
+    mu, noise : float
+        Balance of (*) and the noise level it came from (W's units).
+    N : int
+        Leading components left unpenalised (1 for ``organic``, else 0).
+    prior : str
+    B, C : ndarrays (F, r), (3P, r)
+        The factors (W's units, balanced).
+    objective : float
+        E(B, C) at the end (W's units squared).
+    wnn_objective : float
+        ``1/2 ||W - R X||^2 + sum_i mu a_i sigma_i(X#)`` at the end (equal to
+        ``objective`` at a balanced stationary point).
+    grad_norm : float
+        Relative gradient norm ``||grad E|| / (||W||_F ||(B, C)||_F)`` at the end
+        (scale-free first-order optimality measure).
+    history : dict of (n_iter + 1,) ndarrays
+        ``cost`` (E, normalised units: W / ||W||_F), ``data_term``, ``grad_norm``
+        (relative), starting with the initial point.
+    n_iter : int
+    converged : bool
+        True when ``grad_norm <= gtol``.
+    params : dict
+    """
+
+    shapes: np.ndarray
+    X_init: np.ndarray
+    X_init_singular_values: np.ndarray
+    theta: np.ndarray
+    weights: np.ndarray
+    mu: float
+    noise: float
+    N: int
+    prior: str
+    B: np.ndarray
+    C: np.ndarray
+    objective: float
+    wnn_objective: float
+    grad_norm: float
+    history: dict = field(default_factory=dict)
+    n_iter: int = 0
+    converged: bool = False
+    params: dict = field(default_factory=dict)
+
+
+def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0.03,
+                             mu=None, min_mu=1e-5, init="closed_form", gtol=1e-6,
+                             max_iter=3000, progress=None):
+    """Minimise (*) (module docstring) to a stationary point by variable projection.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements, any units.
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+        Number of shape bases.
+    prior : {"organic", "weighted", "nuclear"}
+        Weights ``a``, see :func:`bilinear_weights`.
+    rank : int, optional
+        Factor rank r (default K).
+    mu_factor : float
+        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (default 1).
+    mu : float, optional
+        Override ``mu`` (W's units).
+    min_mu : float
+        Used only when the rank-K fit is not unique (the closed form's (K+1)-th
+        eigenvalue is at rounding level, e.g. an exactly low-rank W whose cameras leave
+        depth ambiguous): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
+        issued. Measured on shark only (see ``docs/shape_stage.md``).
+    init : {"closed_form", "rank_k"}
+        Start from :func:`closed_form_shapes` or the rank-r truncation of X_init.
+    gtol : float
+        Stop when the relative gradient norm is at most gtol.
+    max_iter : int
+        Cap on L-BFGS iterations.
+    progress : callable(str) or None
+
+    Returns
+    -------
+    BilinearShapeResult
+    """
+    W, Rf, F, P, K = _check(W, R, K)
+    if prior not in ("organic", "weighted", "nuclear"):
+        raise ValueError(f"unknown shape prior {prior!r}; expected organic, weighted or nuclear")
+    r = K if rank is None else int(rank)
+    if not 1 <= r <= min(F, 3 * P):
+        raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {rank!r}")
+    if init not in ("closed_form", "rank_k"):
+        raise ValueError(f"init must be 'closed_form' or 'rank_k'; got {init!r}")
+    if not (np.isfinite(min_mu) and min_mu >= 0):
+        raise ValueError(f"min_mu must be non-negative; got {min_mu!r}")
+    if not (np.isfinite(mu_factor) and mu_factor >= 0):
+        raise ValueError(f"mu_factor must be non-negative; got {mu_factor!r}")
+    if not (np.isfinite(gtol) and gtol >= 0):
+        raise ValueError(f"gtol must be non-negative; got {gtol!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
+    say = progress if callable(progress) else (lambda msg: None)
+
+    scale = float(np.linalg.norm(W))
+    if not scale > 0:
+        raise ValueError("W is zero: nothing to reconstruct")
+    Wn = W / scale
+    Wf = Wn.reshape(F, 2, P)
+    Rt = Rf.transpose(0, 2, 1)
+    Pi = Rt @ Rf
+    Xi3 = Rt @ Wf
+    Xi = Xi3.reshape(F, 3 * P)
+    w2 = 1.0                                                   # ||Wn||_F^2
+    sigma = _singular_values(Xi)
+    a = bilinear_weights(sigma, r, prior)
+    Uw, sw, _ = np.linalg.svd(Wn, full_matrices=False)        # one thin SVD of W
+    noise = _noise_from_singular_values(sw, Wn.shape, K)
+    if mu is None:
+        mu_n = mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P))
+    else:
+        if not (np.isfinite(mu) and mu >= 0):
+            raise ValueError(f"mu must be non-negative; got {mu!r}")
+        mu_n = float(mu) / scale
+    # start; the closed form's (K+1)-th eigenvalue tells whether the rank-K fit is unique
+    gap = float("nan")
+    if init == "closed_form" and r == K:
+        B0, ev = _nullspace_coefficients(Uw, sw, Rf, K)
+        gap = float(ev[K]) if ev.size > K else float("nan")
+    else:
+        B0 = None
+    if not gap > 1e-12 and init == "closed_form" and r == K:
+        what = (f"the prior decides: mu raised to at least min_mu = {min_mu:g} ||W||_F"
+                if mu is None else "the result is one of many")
+        warnings.warn(f"the rank-{K} fit of W with these cameras is not unique (closed-form "
+                      f"nullspace gap {gap:.1e}); {what}", RuntimeWarning, stacklevel=2)
+        if mu is None:
+            mu_n = max(mu_n, min_mu)
+    reg = mu_n * a
+    if B0 is None:
+        U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
+        B0 = U[:, :r] * np.sqrt(sv[:r])
+    B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
+    C0 = _c_step(B0, Pi, Xi, reg)
+    B0, C0 = _balance(B0, C0)
+
+    hist = {"cost": [], "data_term": [], "grad_norm": []}
+
+    def measure(B, C, values=None):
+        E, data, gB, gC = _objective(B, C, Pi, Xi, w2, reg) if values is None else values
+        g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
+        rel = g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
+        return E, data, rel
+
+    def record(B, C, values=None):
+        E, data, rel = measure(B, C, values)
+        hist["cost"].append(E)
+        hist["data_term"].append(data)
+        hist["grad_norm"].append(rel)
+        return rel
+
+    rel = record(B0, C0)
+    state = {"B": B0}
+
+    class _Done(Exception):
+        pass
+
+    n_iter = 0
+    B, C = B0, C0
+    # L-BFGS on the reduced objective f(B) = min_C E(B, C), in preconditioned variables
+    # z_f = L_f' B_f with L_f L_f' = H_f the per-frame Hessian of E in B_f at the current C
+    # (r x r). Restarted every `segment` iterations with a fresh preconditioner from
+    # balanced factors (balancing keeps X# and never raises E).
+    segment = 100
+    while rel > gtol and n_iter < max_iter:
+        Linv = _frame_preconditioner(C, Pi, reg)              # (F, r, r), L_f^-1
+
+        def to_B(z):
+            return np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
+
+        def fun(z):
+            Bz = to_B(z)
+            Cz = _c_step(Bz, Pi, Xi, reg)
+            vals = _objective(Bz, Cz, Pi, Xi, w2, reg)
+            state["last"] = (z.copy(), Bz, Cz, vals)
+            return vals[0], np.einsum("fij,fj->fi", Linv, vals[2]).ravel()
+
+        def cb(zk):
+            nonlocal n_iter, rel
+            n_iter += 1
+            z_last, Bk, Ck, vals = state["last"]
+            if not np.array_equal(z_last, zk):      # not the last evaluated point
+                Bk = to_B(zk)
+                Ck = _c_step(Bk, Pi, Xi, reg)
+                vals = None
+            state["B"] = Bk
+            rel = record(Bk, Ck, vals)
+            if rel <= gtol or n_iter >= max_iter:
+                raise _Done
+
+        n_before = n_iter
+        z0 = np.einsum("fji,fj->fi", np.linalg.inv(Linv), B).ravel()   # L_f' B_f
+        state["B"] = B
+        try:
+            out = scipy.optimize.minimize(
+                fun, z0, jac=True, method="L-BFGS-B", callback=cb,
+                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=20, gtol=0.0,
+                             ftol=0.0, maxls=40))
+            B = to_B(out.x)
+        except _Done:
+            B = state["B"]
+        B, C = _balance(B, _c_step(B, Pi, Xi, reg))
+        C = _c_step(B, Pi, Xi, reg)
+        rel = measure(B, C)[2]
+        if n_iter == n_before:                  # no progress possible (rounding level)
+            break
+    B, C = _balance(B, C)
+    E, data, rel = measure(B, C)
+    res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
+    E += 0.5 * float(np.sum(res ** 2)) - data                  # exact data term
+    data = 0.5 * float(np.sum(res ** 2))
+    converged = rel <= gtol
+    X = (B @ C.T).reshape(F, 3, P) * scale
+    s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
+                        compute_uv=False)                      # sigma(B C'), r x r
+    wnn = data + float(reg @ s_x)
+    say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
+        f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")
+    params = dict(prior=prior, K=K, rank=r, mu_factor=mu_factor, min_mu=min_mu, init=init,
+                  gtol=gtol, max_iter=int(max_iter), normalisation=scale, nullspace_gap=gap)
+    return BilinearShapeResult(
+        shapes=X, X_init=Xi3 * scale, X_init_singular_values=sigma * scale,
+        theta=reg * scale, weights=a, mu=mu_n * scale, noise=noise * scale,
+        N=1 if prior == "organic" else 0, prior=prior,
+        B=B * math.sqrt(scale), C=C * math.sqrt(scale), objective=E * scale ** 2,
+        wnn_objective=wnn * scale ** 2, grad_norm=rel,
+        history={k: np.asarray(v) for k, v in hist.items()}, n_iter=n_iter,
+        converged=converged, params=params)
