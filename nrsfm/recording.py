@@ -67,7 +67,7 @@ import numpy as np
 from .metrics import camera_alignment  # noqa: F401  (re-exported for notebooks)
 
 __all__ = ["RecordingContent", "recording_content", "log_content", "make_blueprint",
-           "build_recording", "save_recording", "output_path", "show_recording",
+           "build_recording", "save_recording", "output_path", "show_recording", "shown_path",
            "ENTITY_PATHS"]
 
 #: Top-level entity paths written (sub-paths depend on the stages that ran).
@@ -680,20 +680,40 @@ def output_path(name, subdir="notebooks"):
     return output_dir(subdir) / name
 
 
+def shown_path(path):
+    """``path`` relative to the folder the user started in when it lies below it (for
+    messages and rendered notebooks), else as given."""
+    from .paths import user_folder
+
+    path = Path(path)
+    try:
+        return path.resolve().relative_to(user_folder().resolve())
+    except ValueError:
+        return path
+
+
 def _interactive():
-    """True in a live notebook front end; False under pytest/CI/nbconvert or when
-    ``NRSFM_NO_VIEWER`` is set."""
+    """Whether a notebook front end will show an embedded viewer.
+
+    ``NRSFM_VIEWER=1`` forces it, ``NRSFM_VIEWER=0`` (or ``NRSFM_NO_VIEWER``, ``CI``, a
+    pytest run) turns it off. Otherwise: an IPython kernel started by a Jupyter server
+    (JupyterLab, Notebook: ``JPY_SESSION_NAME`` set) or by VS Code. A kernel run by
+    ``jupyter nbconvert --execute`` has no front end: it only prints the path.
+    """
     import os
     import sys
 
-    if os.environ.get("NRSFM_VIEWER") == "1":
-        return True
+    flag = os.environ.get("NRSFM_VIEWER")
+    if flag in ("0", "1"):
+        return flag == "1"
     if os.environ.get("CI") or os.environ.get("PYTEST_CURRENT_TEST") or os.environ.get(
-            "NRSFM_NO_VIEWER") or os.environ.get("NRSFM_RENDERING"):
+            "NRSFM_NO_VIEWER"):
         return False
     ipy = sys.modules.get("IPython")
     shell = ipy.get_ipython() if ipy is not None else None
-    return shell is not None and getattr(shell, "kernel", None) is not None
+    if shell is None or getattr(shell, "kernel", None) is None:
+        return False
+    return bool(os.environ.get("JPY_SESSION_NAME") or os.environ.get("VSCODE_PID"))
 
 
 def _offline_widget_assets():
@@ -711,8 +731,9 @@ def show_recording(path, width=1000, height=700, blueprint=None):
     The file is sent to the embedded viewer as it is, so the viewer shows the recording
     with its blueprint under the recording's own application id. The viewer's code is
     inlined from the installed ``rerun-notebook`` package (works offline; set
-    ``RERUN_NOTEBOOK_ASSET`` to override). Needs the ``notebook`` extra; in headless runs
-    (``CI``, pytest, nbconvert with ``NRSFM_NO_VIEWER=1``) nothing is embedded.
+    ``RERUN_NOTEBOOK_ASSET`` to override). Needs the ``notebook`` extra. Headless runs
+    (``CI``, pytest, ``jupyter nbconvert --execute``; see :func:`_interactive`) embed
+    nothing.
     ``blueprint``: an optional layout that replaces the recording's own.
     Returns True when a viewer was embedded.
     """
@@ -734,6 +755,7 @@ def show_recording(path, width=1000, height=700, blueprint=None):
             return True
         except Exception as exc:  # viewer is optional: never break a run for it
             print(f"(no embedded viewer: {exc})")
-    print(f"open the recording with: rerun {path}   (headless or remote: rerun --web-viewer "
-          f"{path})")
+    shown = shown_path(path)
+    print(f"open the recording with: rerun {shown}   (headless or remote: rerun --web-viewer "
+          f"{shown})")
     return False
