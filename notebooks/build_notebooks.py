@@ -55,6 +55,10 @@ def render(src: Path, timeout: int = 1200) -> Path:
     _, text = build(src)
     nb = nbformat.reads(text, as_version=4)
     os.environ["NRSFM_VIEWER"] = "0"                     # inherited by the kernel
+    # the kernel runs in notebooks/: import this checkout's packages, absolute paths
+    entries = [str(HERE.parent)] + [str(Path(p).resolve()) for p in
+                                    os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(entries))
     NotebookClient(nb, timeout=timeout, kernel_name="python3",
                    resources={"metadata": {"path": str(HERE)}}).execute()
     body, res = MarkdownExporter().from_notebook_node(

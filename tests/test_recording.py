@@ -330,3 +330,32 @@ def test_save_recording_threads_bounded(tmp_path, seq, pinv_result):
         save_recording(pinv_result, tmp_path / "loop.rrd")
     after = _n_threads()
     assert after <= before + 4, (before, after)
+
+
+def test_rendered_notebooks_in_sync():
+    """docs/notebooks/NN_*.md (executed notebooks with their figures, for readers of the
+    repository) exist for every notebook source, were rendered from its current text and
+    link only figures that exist. Re-render: python notebooks/build_notebooks.py --render."""
+    import hashlib
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sources = sorted((root / "notebooks" / "src").glob("[0-9][0-9]_*.py"))
+    if not sources:
+        pytest.skip("no notebooks in this checkout")
+    stale = []
+    for src in sources:
+        page = root / "docs" / "notebooks" / f"{src.stem}.md"
+        digest = hashlib.sha256(src.read_bytes()).hexdigest()
+        if not page.is_file() or f"sha256={digest}" not in page.read_text().splitlines()[0]:
+            stale.append(src.name)
+            continue
+        text = page.read_text()
+        images = re.findall(r"!\[[^\]]*\]\(([^)\s]+\.png)\)", text)
+        for img in images:
+            assert (page.parent / img).is_file(), (page.name, img)
+        if "plt.show()" in src.read_text():
+            assert images, f"{page.name} has no figure"
+    assert not stale, ("rendered notebooks out of date (run python notebooks/build_notebooks.py "
+                       f"--render): {stale}")
