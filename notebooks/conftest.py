@@ -1,5 +1,5 @@
 """pytest --nbval-lax notebooks/: runs each notebook in a kernel whose working directory is
-notebooks/. Make relative NRSFM_DATA / NRSFM_OUT (e.g. NRSFM_DATA=../shared/data, relative
+notebooks/. Make relative NRSFM_DATA / NRSFM_OUT (e.g. NRSFM_DATA=data, relative
 to where pytest was started) absolute first, so the kernels inherit paths that still point
 at the same folders."""
 

@@ -493,9 +493,9 @@ def log_content(rec, content):
 
     # 2D image: measured tracks (large, blue) and reprojection of the estimate (small)
     P = c.n_points
-    r_img = 0.012 * max(float(np.abs(c.tracks).max()) if c.tracks.size else 1.0, 1e-300)
-    for name, pts, color, rad in (("measured", c.tracks, GT_COLOR, 1.6 * r_img),
-                                  ("reprojected", c.reprojected, ESTIMATE_COLOR, r_img)):
+    # radii in screen points (negative in rerun): the same size at any zoom and data scale
+    for name, pts, color, rad in (("measured", c.tracks, GT_COLOR, -7.0),
+                                  ("reprojected", c.reprojected, ESTIMATE_COLOR, -4.0)):
         rec.send_columns(f"/image/{name}", indexes=[rr.TimeColumn("frame", sequence=fr)],
                          columns=rr.Points2D.columns(positions=pts.reshape(-1, 2)).partition(
                              [P] * c.n_frames))
