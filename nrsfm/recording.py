@@ -357,7 +357,8 @@ def make_blueprint(content=None):
     no_legend = rrb.PlotLegend(visible=False)
     admm_names = (list(content.admm) if content is not None else list(ADMM_KEYS))
     admm = [rrb.BarChartView(origin=f"/admm_history/{n}",
-                             name=f"ADMM {_admm_label(n).replace('_', ' ')}",
+                             name=("ADMM cost" if n == "cost"
+                                   else _admm_label(n).replace("_", " ")),
                              plot_legend=no_legend)
             for n in admm_names if n in ADMM_KEYS]
     series = []
@@ -725,7 +726,7 @@ def _offline_widget_assets():
     os.environ.setdefault("RERUN_NOTEBOOK_ASSET", "inline")
 
 
-def show_recording(path, width=1000, height=700, blueprint=None):
+def show_recording(path, width=1000, height=720, blueprint=None):
     """Embed a viewer of the ``.rrd`` at ``path`` in a live notebook; else print how to open it.
 
     The file is sent to the embedded viewer as it is, so the viewer shows the recording
@@ -734,6 +735,7 @@ def show_recording(path, width=1000, height=700, blueprint=None):
     ``RERUN_NOTEBOOK_ASSET`` to override). Needs the ``notebook`` extra. Headless runs
     (``CI``, pytest, ``jupyter nbconvert --execute``; see :func:`_interactive`) embed
     nothing.
+    ``width``, ``height``: pixels.
     ``blueprint``: an optional layout that replaces the recording's own.
     Returns True when a viewer was embedded.
     """
