@@ -33,7 +33,9 @@ Entity paths (timeline in brackets)
 * ``/world/shapes/ground_truth`` (small points), ``.../rings`` (wireframe spheres around
   them, Ellipsoids3D) and ``.../skeleton`` [frame]
 * ``/world/cameras/estimate``, ``/world/cameras/ground_truth``: Transform3D camera -> world
-  (rotation ``R_f'``, centre ``-d r3_f``) with TransformAxes3D [frame]
+  (rotation ``R_f'``, centre ``-d r3_f``) drawn with TransformAxes3D (x, y, viewing
+  direction z in red, green, blue) and a Pinhole frustum in the camera's colour (the
+  ground truth's larger) [frame]
 * ``/world/trajectory/estimate``, ``/world/trajectory/ground_truth``: LineStrips3D of the
   camera centres [static]
 * ``/rotations/triplet_k`` (k = 1..K): Arrows3D, the rows of the registered ``R^k_f``,
@@ -42,17 +44,23 @@ Entity paths (timeline in brackets)
 * ``/rotation_samples/kept/triplet_k`` (1 kept, 0 dropped),
   ``/rotation_samples/distance/triplet_k`` (chordal ``||R^k_f - R_avg,f||_F``),
   ``/rotation_samples/coefficient/triplet_k`` (``|c_fk|``),
+  ``/rotation_samples/n_kept`` (samples kept per frame),
   ``/rotation_samples/sign_from_smoothness`` (1 where the depth sign was flipped):
   Scalars [frame]
 * ``/errors/e3d``, ``/errors/e_R``: per-frame errors, Scalars [frame]
 * ``/image/measured``, ``/image/reprojected``: Points2D, ``W_f`` and ``R_f X_f`` [frame]
 * ``/admm/cost``, ``/admm/data_term``, ``/admm/residual``, ``/admm/rho``: the raw ADMM
-  history, Scalars; ``/admm_log10/residual``, ``/admm_log10/rho`` [admm_iteration]
+  history, Scalars [admm_iteration]
+* ``/admm_history/cost`` and ``/admm_history/{data_term,residual,rho}`` (log10): the same
+  history as BarCharts over the iteration, shown in the default layout whatever the
+  timeline [static]
 * ``/singular_values/W`` (of ``W / scale``), ``/singular_values/X_init`` (of
-  ``X_init# / scale``), ``/singular_values/theta`` (the weights): BarChart [static]
+  ``X_init# / scale``), ``/singular_values/theta`` (the weights) and
+  ``/singular_values/log10_theta``: BarChart [static]
 * ``/run/report``: TextDocument, markdown: parameters, errors, timings [static]
 
-Parts of a stage that did not run (``rotation_stage`` / ``shape_stage`` None) and ground
+The blueprint (:func:`make_blueprint`) opens on the timeline ``frame``; every view in it
+shows data there. Parts of a stage that did not run (``rotation_stage`` / ``shape_stage`` None) and ground
 truth that is not given are left out.
 """
 
