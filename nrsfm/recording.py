@@ -350,12 +350,16 @@ def make_blueprint(content=None):
         pos, up = _eye(content)
         world_kw["eye_controls"] = rrb.EyeControls3D(position=pos, look_target=[0, 0, 0],
                                                      eye_up=up)
-    left_top = rrb.Spatial3DView(origin="/world", name="shapes (orange estimate, blue ground "
-                                 "truth) and cameras", **world_kw)
+    gt_shapes = content is None or content.shapes_gt is not None
+    left_top = rrb.Spatial3DView(
+        origin="/world", name=("shapes (orange estimate, blue ground truth) and cameras"
+                               if gt_shapes else "shapes and cameras (estimate)"), **world_kw)
     lower = []
     if has("triplet_rotations"):
         lower.append(rrb.Spatial3DView(
-            origin="/rotations", name="camera axes: samples (thin), average (thick), GT (pale)",
+            origin="/rotations", name="camera axes: samples (thin), average (thick)" + (
+                ", GT (pale)" if content is None or content.rotations_gt_display is not None
+                else ""),
             eye_controls=rrb.EyeControls3D(position=[1.7, -2.0, 1.4], look_target=[0, 0, 0],
                                            eye_up=[0, 0, 1])))
     lower.append(rrb.Spatial2DView(origin="/image", name="image: measured (blue) vs "
