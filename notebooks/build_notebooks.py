@@ -4,6 +4,8 @@ jupytext percent-format sources in ``notebooks/src/``.
     python notebooks/build_notebooks.py            # all
     python notebooks/build_notebooks.py 00 05      # those whose name starts so
     python notebooks/build_notebooks.py --check    # fail if an .ipynb is out of date
+    NRSFM_DATA=... python notebooks/build_notebooks.py --render [00 ...]
+                                                   # execute, write docs/notebooks/NN_*.md
 
 Edit the ``src/*.py`` files, not the ``.ipynb``: these are generated (and committed so that
 ``pytest --nbval-lax notebooks/`` runs them).
@@ -11,6 +13,8 @@ Edit the ``src/*.py`` files, not the ``.ipynb``: these are generated (and commit
 
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
 from pathlib import Path
 
@@ -18,6 +22,7 @@ import jupytext
 import nbformat
 
 HERE = Path(__file__).resolve().parent
+DOCS = HERE.parent / "docs" / "notebooks"
 KERNEL = {"display_name": "Python 3", "language": "python", "name": "python3"}
 
 
@@ -33,12 +38,55 @@ def build(src: Path) -> tuple[Path, str]:
     return HERE / f"{src.stem}.ipynb", text
 
 
+def source_hash(src: Path) -> str:
+    """sha256 of a notebook source: the rendered page records it, the tests compare."""
+    return hashlib.sha256(src.read_bytes()).hexdigest()
+
+
+def render(src: Path, timeout: int = 1200) -> Path:
+    """Execute the notebook of ``src`` (kernel in notebooks/, no embedded viewer) and write
+    it as markdown with its figures to ``docs/notebooks/<name>.md`` + ``<name>_files/``."""
+    import shutil
+
+    import nbformat
+    from nbclient import NotebookClient
+    from nbconvert import MarkdownExporter
+
+    _, text = build(src)
+    nb = nbformat.reads(text, as_version=4)
+    os.environ["NRSFM_VIEWER"] = "0"                     # inherited by the kernel
+    # the kernel runs in notebooks/: import this checkout's packages, absolute paths
+    entries = [str(HERE.parent)] + [str(Path(p).resolve()) for p in
+                                    os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(entries))
+    NotebookClient(nb, timeout=timeout, kernel_name="python3",
+                   resources={"metadata": {"path": str(HERE)}}).execute()
+    body, res = MarkdownExporter().from_notebook_node(
+        nb, resources={"output_files_dir": f"{src.stem}_files"})
+    DOCS.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(DOCS / f"{src.stem}_files", ignore_errors=True)
+    for name, data in res.get("outputs", {}).items():
+        out = DOCS / name
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_bytes(data)
+    head = (f"<!-- rendered by `python notebooks/build_notebooks.py --render` from "
+            f"notebooks/src/{src.name} sha256={source_hash(src)}; do not edit -->\n\n")
+    page = DOCS / f"{src.stem}.md"
+    page.write_text(head + body)
+    return page
+
+
 def main(argv):
     check = "--check" in argv
+    do_render = "--render" in argv
     prefixes = [a for a in argv if not a.startswith("--")]
     stale = []
     for src in sorted((HERE / "src").glob("[0-9][0-9]_*.py")):
         if prefixes and not any(src.stem.startswith(p) for p in prefixes):
+            continue
+        if do_render:
+            page = render(src)
+            print(f"wrote {page.relative_to(HERE.parent)}")
             continue
         dst, text = build(src)
         if check:

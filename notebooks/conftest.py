@@ -1,7 +1,9 @@
 """pytest --nbval-lax notebooks/: runs each notebook in a kernel whose working directory is
-notebooks/. Make relative NRSFM_DATA / NRSFM_OUT (e.g. NRSFM_DATA=../data, relative
-to where pytest was started) absolute first, so the kernels inherit paths that still point
-at the same folders."""
+notebooks/. Make relative NRSFM_DATA / NRSFM_OUT (e.g. NRSFM_DATA=data, relative to where
+pytest was started) and relative PYTHONPATH entries (e.g. PYTHONPATH=. from the repository
+root) absolute first, so the kernels inherit paths that still point at the same folders.
+(nrsfm.paths resolves NRSFM_DATA / NRSFM_OUT against $PWD on its own; this keeps them right
+for any code that reads the variables directly.)"""
 
 import os
 from pathlib import Path
@@ -10,3 +12,7 @@ for _name in ("NRSFM_DATA", "NRSFM_OUT"):
     _value = os.environ.get(_name)
     if _value and not os.path.isabs(_value):
         os.environ[_name] = str(Path(_value).resolve())
+
+if os.environ.get("PYTHONPATH"):
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        str(Path(p).resolve()) for p in os.environ["PYTHONPATH"].split(os.pathsep) if p)

@@ -30,9 +30,12 @@ Entity paths (timeline in brackets)
 -----------------------------------
 * ``/world/shapes/estimate`` Points3D, the aligned estimate [frame];
   ``/world/shapes/estimate/skeleton`` LineStrips3D where the sequence has edges [frame]
-* ``/world/shapes/ground_truth`` and ``.../skeleton`` [frame]
+* ``/world/shapes/ground_truth`` (small points), ``.../rings`` (wireframe spheres around
+  them, Ellipsoids3D) and ``.../skeleton`` [frame]
 * ``/world/cameras/estimate``, ``/world/cameras/ground_truth``: Transform3D camera -> world
-  (rotation ``R_f'``, centre ``-d r3_f``) with TransformAxes3D [frame]
+  (rotation ``R_f'``, centre ``-d r3_f``) drawn with TransformAxes3D (x, y, viewing
+  direction z in red, green, blue) and a Pinhole frustum in the camera's colour (the
+  ground truth's larger) [frame]
 * ``/world/trajectory/estimate``, ``/world/trajectory/ground_truth``: LineStrips3D of the
   camera centres [static]
 * ``/rotations/triplet_k`` (k = 1..K): Arrows3D, the rows of the registered ``R^k_f``,
@@ -41,17 +44,23 @@ Entity paths (timeline in brackets)
 * ``/rotation_samples/kept/triplet_k`` (1 kept, 0 dropped),
   ``/rotation_samples/distance/triplet_k`` (chordal ``||R^k_f - R_avg,f||_F``),
   ``/rotation_samples/coefficient/triplet_k`` (``|c_fk|``),
+  ``/rotation_samples/n_kept`` (samples kept per frame),
   ``/rotation_samples/sign_from_smoothness`` (1 where the depth sign was flipped):
   Scalars [frame]
 * ``/errors/e3d``, ``/errors/e_R``: per-frame errors, Scalars [frame]
 * ``/image/measured``, ``/image/reprojected``: Points2D, ``W_f`` and ``R_f X_f`` [frame]
 * ``/admm/cost``, ``/admm/data_term``, ``/admm/residual``, ``/admm/rho``: the raw ADMM
-  history, Scalars; ``/admm_log10/residual``, ``/admm_log10/rho`` [admm_iteration]
+  history, Scalars [admm_iteration]
+* ``/admm_history/cost`` and ``/admm_history/{data_term,residual,rho}`` (log10): the same
+  history as BarCharts over the iteration, shown in the default layout whatever the
+  timeline [static]
 * ``/singular_values/W`` (of ``W / scale``), ``/singular_values/X_init`` (of
-  ``X_init# / scale``), ``/singular_values/theta`` (the weights): BarChart [static]
+  ``X_init# / scale``), ``/singular_values/theta`` (the weights) and
+  ``/singular_values/log10_theta``: BarChart [static]
 * ``/run/report``: TextDocument, markdown: parameters, errors, timings [static]
 
-Parts of a stage that did not run (``rotation_stage`` / ``shape_stage`` None) and ground
+The blueprint (:func:`make_blueprint`) opens on the timeline ``frame``; every view in it
+shows data there. Parts of a stage that did not run (``rotation_stage`` / ``shape_stage`` None) and ground
 truth that is not given are left out.
 """
 
@@ -66,7 +75,7 @@ import numpy as np
 from .metrics import camera_alignment  # noqa: F401  (re-exported for notebooks)
 
 __all__ = ["RecordingContent", "recording_content", "log_content", "make_blueprint",
-           "build_recording", "save_recording", "output_path", "show_recording",
+           "build_recording", "save_recording", "output_path", "show_recording", "shown_path",
            "ENTITY_PATHS"]
 
 #: Top-level entity paths written (sub-paths depend on the stages that ran).
@@ -186,7 +195,7 @@ def recording_content(result, sequence=None):
                          else np.asarray(sequence.edges, int),
                          cameras_est=disp_rot(R_est),
                          cameras_gt=None if R_gt is None else _complete(R_gt),
-                         camera_distance=2.0 * extent, axis_length=0.5 * extent,
+                         camera_distance=1.5 * extent, axis_length=0.4 * extent,
                          aligned=X_gt is not None)
 
     Wt = np.asarray(result.W, float).reshape(F, 2, P)
@@ -296,34 +305,109 @@ def _report(result, sequence, c):
 
 # --------------------------------------------------------------------------- logging
 
+def _log10(v):
+    v = np.asarray(v, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.log10(np.where(v > 0, v, np.nan))
+
+
+#: ADMM quantities drawn on a log10 axis (they span many orders of magnitude).
+ADMM_LOG = ("data_term", "residual", "rho")
+
+
+def _admm_label(name):
+    return f"log10 {name}" if name in ADMM_LOG else name
+
+
+def _eye(content):
+    """Opening eye of the 3D views: behind and above the first camera, both cameras and
+    shapes in view. Returns (position, up) for the world view."""
+    R = content.cameras_gt if content.cameras_gt is not None else content.cameras_est
+    if R is None or not len(R):
+        return np.array([1.0, -1.5, 1.0]) * 2.5 * content.camera_distance, np.array([0, 0, 1.0])
+    r1, r2, r3 = R[0]
+    direction = -r3 - 0.55 * r2 + 0.45 * r1     # behind camera 0, above it (image y down)
+    direction /= np.linalg.norm(direction)
+    return 2.2 * content.camera_distance * direction, -r2
+
+
 def make_blueprint(content=None):
-    """A default layout: 3D view and 2D image left; time series, bar charts, report right."""
+    """The default layout, in which every view has data on the opening timeline ``frame``.
+
+    Left: the 3D world (shapes, cameras as frusta with RGB axes), the rotation samples and
+    the image. Right: the ADMM history as one bar chart per quantity (static, so it shows
+    whatever the timeline; data term, residual and rho on log10 axes), per-frame errors and
+    rotation-sample series in tabs, the spectra (theta on a log10 axis) and the report.
+    """
     import rerun.blueprint as rrb
 
-    left = [rrb.Spatial3DView(origin="/world", name="shapes and cameras")]
-    if content is None or content.triplet_rotations is not None:
-        left.append(rrb.Spatial3DView(origin="/rotations", name="rotation samples"))
-    left.append(rrb.Spatial2DView(origin="/image", name="image: measured vs reprojected"))
+    has = (lambda attr: True) if content is None else (
+        lambda attr: bool(getattr(content, attr) is not None and
+                          (not isinstance(getattr(content, attr), dict)
+                           or getattr(content, attr))))
+    world_kw = {}
+    if content is not None:
+        pos, up = _eye(content)
+        world_kw["eye_controls"] = rrb.EyeControls3D(position=pos, look_target=[0, 0, 0],
+                                                     eye_up=up)
+    gt_shapes = content is None or content.shapes_gt is not None
+    left_top = rrb.Spatial3DView(
+        origin="/world", name=("shapes (orange estimate, blue ground truth) and cameras"
+                               if gt_shapes else "shapes and cameras (estimate)"), **world_kw)
+    lower = []
+    if has("triplet_rotations"):
+        lower.append(rrb.Spatial3DView(
+            origin="/rotations", name="camera axes: samples (thin), average (thick)" + (
+                ", GT (pale)" if content is None or content.rotations_gt_display is not None
+                else ""),
+            eye_controls=rrb.EyeControls3D(position=[1.7, -2.0, 1.4], look_target=[0, 0, 0],
+                                           eye_up=[0, 0, 1])))
+    lower.append(rrb.Spatial2DView(origin="/image", name="image: measured (blue) vs "
+                                   "reprojected (orange)"))
+    left = rrb.Vertical(left_top, rrb.Horizontal(*lower), row_shares=[3, 2])
+
+    no_legend = rrb.PlotLegend(visible=False)
+    admm_names = (list(content.admm) if content is not None else list(ADMM_KEYS))
+    admm = [rrb.BarChartView(origin=f"/admm_history/{n}",
+                             name=("ADMM cost" if n == "cost"
+                                   else _admm_label(n).replace("_", " ")),
+                             plot_legend=no_legend)
+            for n in admm_names if n in ADMM_KEYS]
     series = []
-    if content is None or content.admm:
-        series.append(rrb.TimeSeriesView(origin="/admm", name="ADMM (raw)"))
-        series.append(rrb.TimeSeriesView(origin="/admm_log10", name="ADMM (log10)"))
-    if content is None or content.errors_per_frame:
-        series.append(rrb.TimeSeriesView(origin="/errors", name="per-frame errors"))
-    if content is None or content.triplet_rotations is not None:
-        series.append(rrb.TimeSeriesView(origin="/rotation_samples",
-                                         name="rotation samples"))
-    bars = [rrb.BarChartView(origin=f"/singular_values/{n}", name=f"singular values {n}")
-            for n in (content.singular_values if content is not None
-                      else ("W", "X_init"))]
+    errors = (list(content.errors_per_frame) if content is not None else ["e3d", "e_R"])
+    for n in errors:
+        series.append(rrb.TimeSeriesView(origin=f"/errors/{n}", name=f"{n} per frame",
+                                         plot_legend=no_legend))
+    if has("triplet_rotations"):
+        series.append(rrb.TimeSeriesView(origin="/rotation_samples/distance",
+                                         name="sample distance to average"))
+        if content is None or content.triplet_coefficients is not None:
+            series.append(rrb.TimeSeriesView(origin="/rotation_samples/coefficient",
+                                             name="|c_fk| per triplet"))
+        series.append(rrb.TimeSeriesView(
+            origin="/rotation_samples", contents=["/rotation_samples/n_kept",
+                                                  "/rotation_samples/sign_from_smoothness"],
+            name="samples kept, sign flips"))
+    spectra = [rrb.BarChartView(origin=f"/singular_values/{n}", name=title,
+                                plot_legend=no_legend)
+               for n, title in (("W", "singular values of W"),
+                                ("X_init", "singular values of X_init#"),
+                                ("log10_theta", "log10 weights theta"))
+               if content is None or n in content.singular_values
+               or (n == "log10_theta" and "theta" in content.singular_values)]
+    report = rrb.TextDocumentView(origin="/run/report", name="report")
     right = []
+    if admm:
+        right.append(rrb.Grid(*admm, grid_columns=2, name="ADMM"))
     if series:
-        right.append(rrb.Tabs(*series))
-    right.append(rrb.Horizontal(*bars))
-    right.append(rrb.TextDocumentView(origin="/run/report", name="report"))
-    return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(*left), rrb.Vertical(*right),
-                                        column_shares=[3, 2]),
-                         collapse_panels=False)
+        right.append(rrb.Tabs(*series, name="per frame"))
+    right.append(rrb.Tabs(*spectra, report, name="spectra and report"))
+    shares = [3, 2, 2] if len(right) == 3 else [1] * len(right)
+    return rrb.Blueprint(
+        rrb.Horizontal(left, rrb.Vertical(*right, row_shares=shares), column_shares=[3, 2]),
+        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="frame"),
+        auto_views=False, collapse_panels=False)
 
 
 def _send_points(rec, rr, path, pts, frames, color, radius):
@@ -343,31 +427,41 @@ def _send_skeleton(rec, rr, path, pts, edges, frames, color, radius):
     rec.log(path, rr.LineStrips3D.from_fields(colors=[color], radii=[radius]), static=True)
 
 
-def _send_scalars(rec, rr, path, values, index, timeline, name=None):
+def _send_scalars(rec, rr, path, values, index, timeline, name=None, color=None):
     rec.send_columns(path, indexes=[rr.TimeColumn(timeline, sequence=index)],
                      columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
-    if name:
-        rec.log(path, rr.SeriesLines(names=name), static=True)
+    if name or color is not None:
+        rec.log(path, rr.SeriesLines(names=name, colors=color), static=True)
 
 
-def _send_camera(rec, rr, path, R, frames, distance, axis_length):
-    """Camera f as a transform camera -> world: rotation R_f' and centre -distance r3_f."""
+def _send_camera(rec, rr, path, R, frames, distance, axis_length, color, frustum=1.0):
+    """Camera f as a transform camera -> world (rotation R_f', centre -distance r3_f), drawn
+    as RGB axes (x, y, viewing direction z) and a frustum in the camera's colour."""
     centres = -distance * R[:, 2, :]
     rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
                      columns=rr.Transform3D.columns(mat3x3=R.transpose(0, 2, 1),
                                                     translation=centres))
     rec.log(path, rr.TransformAxes3D(axis_length), static=True)
+    rec.log(path, rr.Pinhole(fov_y=0.7, aspect_ratio=1.3, camera_xyz=rr.ViewCoordinates.RDF,
+                             image_plane_distance=frustum * axis_length, color=color,
+                             line_width=0.006 * distance), static=True)
     return centres
 
 
-def _send_axes(rec, rr, path, R, frames, colors, length, radius):
+def _send_axes(rec, rr, path, R, frames, colors, length, radius, labels=None):
     """Rows of R_f (the camera axes in the world) as three arrows from the origin."""
     F = R.shape[0]
     rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)],
                      columns=rr.Arrows3D.columns(vectors=(length * R).reshape(-1, 3),
                                                  colors=colors.reshape(-1, 4))
                      .partition([3] * F))
-    rec.log(path, rr.Arrows3D.from_fields(radii=[radius]), static=True)
+    rec.log(path, rr.Arrows3D.from_fields(radii=[radius], labels=labels), static=True)
+
+
+def _bars(rec, rr, path, values, abscissa=None, color=None):
+    v = np.asarray(values, float)
+    x = np.arange(1, v.size + 1) if abscissa is None else np.asarray(abscissa, float)
+    rec.log(path, rr.BarChart(v, abscissa=x, color=color), static=True)
 
 
 def log_content(rec, content):
@@ -376,37 +470,51 @@ def log_content(rec, content):
 
     c = content
     fr = c.frames
-    r_pt = 0.012 * c.camera_distance
+    r_pt = 0.016 * c.camera_distance
     r_ln = 0.4 * r_pt
 
+    # estimate: small bright points over larger ground-truth points, so both stay visible
     _send_points(rec, rr, "/world/shapes/estimate", c.shapes_est, fr, ESTIMATE_COLOR, r_pt)
     if c.edges is not None and len(c.edges):
         _send_skeleton(rec, rr, "/world/shapes/estimate/skeleton", c.shapes_est, c.edges, fr,
                        ESTIMATE_COLOR, r_ln)
     if c.shapes_gt is not None:
-        _send_points(rec, rr, "/world/shapes/ground_truth", c.shapes_gt, fr, GT_COLOR, r_pt)
+        # ground truth: small dots inside wireframe rings, so an estimate that sits on it
+        # stays visible and one that misses it shows as a blue dot outside an orange one
+        path = "/world/shapes/ground_truth"
+        _send_points(rec, rr, path, c.shapes_gt, fr, GT_COLOR, 0.6 * r_pt)
+        F, P = c.shapes_gt.shape[:2]
+        rec.send_columns(f"{path}/rings", indexes=[rr.TimeColumn("frame", sequence=fr)],
+                         columns=rr.Ellipsoids3D.columns(
+                             centers=c.shapes_gt.reshape(-1, 3)).partition([P] * F))
+        rec.log(f"{path}/rings", rr.Ellipsoids3D.from_fields(
+            half_sizes=[[2.0 * r_pt] * 3], colors=[GT_COLOR], line_radii=[0.12 * r_pt],
+            fill_mode=rr.components.FillMode.MajorWireframe), static=True)
         if c.edges is not None and len(c.edges):
             _send_skeleton(rec, rr, "/world/shapes/ground_truth/skeleton", c.shapes_gt,
-                           c.edges, fr, GT_COLOR, r_ln)
+                           c.edges, fr, GT_COLOR, 0.6 * r_ln)
 
     for name, R, color in (("estimate", c.cameras_est, ESTIMATE_COLOR),
                            ("ground_truth", c.cameras_gt, GT_COLOR)):
         if R is None:
             continue
+        # the ground truth's frustum is the larger one: both show when they coincide
         centres = _send_camera(rec, rr, f"/world/cameras/{name}", R, fr, c.camera_distance,
-                               c.axis_length)
+                               c.axis_length, color, 1.0 if name == "estimate" else 1.5)
         rec.log(f"/world/trajectory/{name}",
                 rr.LineStrips3D([centres], colors=[color], radii=[r_ln]), static=True)
 
-    # 2D image: measured tracks and reprojection of the estimate
+    # 2D image: measured tracks (large, blue) and reprojection of the estimate (small)
     P = c.n_points
-    for name, pts, color in (("measured", c.tracks, GT_COLOR),
-                             ("reprojected", c.reprojected, ESTIMATE_COLOR)):
+    # radii in screen points (negative in rerun): the same size at any zoom and data scale
+    for name, pts, color, rad in (("measured", c.tracks, GT_COLOR, -7.0),
+                                  ("reprojected", c.reprojected, ESTIMATE_COLOR, -4.0)):
         rec.send_columns(f"/image/{name}", indexes=[rr.TimeColumn("frame", sequence=fr)],
                          columns=rr.Points2D.columns(positions=pts.reshape(-1, 2)).partition(
                              [P] * c.n_frames))
-        rec.log(f"/image/{name}", rr.Points2D.from_fields(colors=[color], radii=[r_pt]),
-                static=True)
+        rec.log(f"/image/{name}", rr.Points2D.from_fields(
+            colors=[color], radii=[rad], draw_order=1.0 if name == "measured" else 2.0),
+            static=True)
 
     # rotation samples
     if c.triplet_rotations is not None:
@@ -419,35 +527,42 @@ def log_content(rec, content):
             _send_scalars(rec, rr, f"/rotation_samples/kept/triplet_{k + 1}",
                           c.triplet_kept[k].astype(float), fr, "frame")
             _send_scalars(rec, rr, f"/rotation_samples/distance/triplet_{k + 1}",
-                          c.triplet_distance[k], fr, "frame")
+                          c.triplet_distance[k], fr, "frame", f"triplet {k + 1}")
             if c.triplet_coefficients is not None:
                 _send_scalars(rec, rr, f"/rotation_samples/coefficient/triplet_{k + 1}",
-                              c.triplet_coefficients[k], fr, "frame")
+                              c.triplet_coefficients[k], fr, "frame", f"triplet {k + 1}")
+        _send_scalars(rec, rr, "/rotation_samples/n_kept", c.triplet_kept.sum(axis=0), fr,
+                      "frame", "samples kept by the filter", [(60, 160, 60)])
     if c.sign_from_smoothness is not None:
         _send_scalars(rec, rr, "/rotation_samples/sign_from_smoothness",
-                      c.sign_from_smoothness.astype(float), fr, "frame")
+                      c.sign_from_smoothness.astype(float), fr, "frame",
+                      "depth sign flipped (1)", [(200, 60, 200)])
     if c.averaged is not None:
         _send_axes(rec, rr, "/rotations/averaged", c.averaged, fr,
-                   np.broadcast_to(AXIS_COLORS, (c.n_frames, 3, 4)), 1.15, 0.012)
+                   np.broadcast_to(AXIS_COLORS, (c.n_frames, 3, 4)), 1.15, 0.014)
     if c.rotations_gt_display is not None:
+        pale = (0.45 * AXIS_COLORS[:, :3] + 0.55 * 255).astype(np.uint8)
+        pale = np.concatenate([pale, np.full((3, 1), 255, np.uint8)], axis=1)
         _send_axes(rec, rr, "/rotations/ground_truth", c.rotations_gt_display, fr,
-                   np.broadcast_to(np.array(GT_COLOR, np.uint8), (c.n_frames, 3, 4)), 1.3,
-                   0.008)
+                   np.broadcast_to(pale, (c.n_frames, 3, 4)), 1.35, 0.022,
+                   labels=["x GT", "y GT", "z GT"])
 
     for name, v in c.errors_per_frame.items():
         _send_scalars(rec, rr, f"/errors/{name}", v, fr, "frame", name)
 
+    # ADMM history: on its own timeline (raw, exact) and as static bar charts, one per
+    # quantity, which show on any timeline (log10 where the values span decades)
     for name, v in c.admm.items():
         it = np.arange(v.size)
         _send_scalars(rec, rr, f"/admm/{name}", v, it, "admm_iteration", name)
-        if name in ("residual", "rho"):
-            with np.errstate(divide="ignore", invalid="ignore"):
-                lv = np.log10(np.where(v > 0, v, np.nan))
-            _send_scalars(rec, rr, f"/admm_log10/{name}", lv, it, "admm_iteration",
-                          f"log10 {name}")
+        if name in ADMM_KEYS:
+            _bars(rec, rr, f"/admm_history/{name}", _log10(v) if name in ADMM_LOG else v,
+                  abscissa=it, color=ESTIMATE_COLOR if name == "cost" else (90, 90, 200, 255))
 
     for name, v in c.singular_values.items():
         rec.log(f"/singular_values/{name}", rr.BarChart(v), static=True)
+    if "theta" in c.singular_values:
+        _bars(rec, rr, "/singular_values/log10_theta", _log10(c.singular_values["theta"]))
 
     rec.log("/run/report", rr.TextDocument(c.report, media_type=rr.MediaType.MARKDOWN),
             static=True)
@@ -458,6 +573,59 @@ def _new_stream(application_id, recording_id):
 
     return rr.RecordingStream(application_id,
                               recording_id=recording_id or str(uuid.uuid4()))
+
+
+def _release_streams():
+    """Free the native resources (2 threads each) of recording streams no longer referenced.
+
+    rerun-sdk keeps a dropped stream's batcher and sink threads alive until a sweep; its
+    ``rr.init`` runs one, a plain ``RecordingStream`` never does.
+    """
+    from rerun import bindings
+
+    sweep = getattr(bindings, "flush_and_cleanup_orphaned_recordings", None)
+    if sweep is not None:
+        sweep()
+
+
+_BLUEPRINT_STREAMS = {}     # application id -> the one blueprint stream of this process
+
+
+def _blueprint_storage(application_id, blueprint):
+    """The blueprint as rerun's in-memory storage, or None if rerun's internals moved.
+
+    rerun-sdk 0.41 turns every blueprint into a new blueprint stream (``save``'s
+    ``default_blueprint``, ``send_blueprint``) whose 2 threads are never released; one
+    stream per application id, given a fresh memory sink per blueprint, keeps the count
+    bounded. Relies on internals of the pinned rerun-sdk, hence the fallback.
+    """
+    try:
+        from rerun import bindings
+        from rerun.recording_stream import RecordingStream
+
+        stream = _BLUEPRINT_STREAMS.get(application_id)
+        if stream is None:
+            stream = RecordingStream._from_native(bindings.new_blueprint(
+                application_id=application_id, make_default=False,
+                make_thread_default=False, default_enabled=True))
+            _BLUEPRINT_STREAMS[application_id] = stream
+        memory = stream.memory_recording()        # a new sink: this blueprint only
+        stream.set_time("blueprint", sequence=0)
+        blueprint.to_blueprint()._log_to_stream(stream)
+        stream.flush()
+        return memory.storage
+    except (AttributeError, ImportError, TypeError):
+        return None
+
+
+def _send_blueprint(rec, blueprint):
+    from rerun import bindings
+
+    storage = _blueprint_storage(rec.get_application_id(), blueprint)
+    if storage is None:
+        rec.send_blueprint(blueprint)
+    else:
+        bindings.send_blueprint(storage, True, True, recording=rec.to_native())
 
 
 def build_recording(result, sequence=None, *, application_id="nrsfm", recording_id=None):
@@ -476,7 +644,7 @@ def build_recording(result, sequence=None, *, application_id="nrsfm", recording_
     """
     content = recording_content(result, sequence)
     rec = _new_stream(application_id, recording_id)
-    rec.send_blueprint(make_blueprint(content))
+    _send_blueprint(rec, make_blueprint(content))
     log_content(rec, content)
     return rec
 
@@ -485,64 +653,123 @@ def save_recording(result, path, sequence=None, **kw):
     """Write the recording of ``result`` to an ``.rrd`` file; returns its Path.
 
     Keyword arguments go to :func:`build_recording` (``application_id``,
-    ``recording_id``). Parent folders are created.
+    ``recording_id``). Parent folders are created. The stream is closed and its threads
+    released, so repeated calls do not accumulate threads.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     content = recording_content(result, sequence)
-    rec = _new_stream(kw.pop("application_id", "nrsfm"), kw.pop("recording_id", None))
+    application_id = kw.pop("application_id", "nrsfm")
+    rec = _new_stream(application_id, kw.pop("recording_id", None))
     if kw:
         raise TypeError(f"unexpected keyword arguments {sorted(kw)}")
-    rec.save(path, default_blueprint=make_blueprint(content))
     try:
+        blueprint = make_blueprint(content)
+        storage = _blueprint_storage(application_id, blueprint)
+        if storage is None:
+            rec.save(path, default_blueprint=blueprint)
+        else:
+            from rerun import bindings
+
+            bindings.save(path=str(path), default_blueprint=storage,
+                          recording=rec.to_native(), write_footer=True)
         log_content(rec, content)
         rec.flush()
     finally:
         rec.disconnect()
+        del rec
+        _release_streams()
     return path
 
 
 # --------------------------------------------------------------------------- notebooks
 
 def output_path(name, subdir="notebooks"):
-    """Where notebooks and scripts write recordings: ``output_dir(subdir) / name``, i.e.
-    ``$NRSFM_OUT/<subdir>/name`` or ``out/<subdir>/name`` under the folder the user started
-    in (:func:`nrsfm.paths.output_dir`), never inside the installed package."""
+    """Where notebooks and scripts write files: ``output_dir(subdir) / name``, i.e. under
+    ``$NRSFM_OUT`` if set, else ``out/<subdir>/`` in the folder the user started in (never
+    inside the installed package). The folder is created."""
     from .paths import output_dir
 
     return output_dir(subdir) / name
 
 
+def shown_path(path):
+    """``path`` relative to the folder the user started in when it lies below it (for
+    messages and rendered notebooks), else as given."""
+    from .paths import user_folder
+
+    path = Path(path)
+    try:
+        return path.resolve().relative_to(user_folder().resolve())
+    except ValueError:
+        return path
+
+
 def _interactive():
+    """Whether a notebook front end will show an embedded viewer.
+
+    ``NRSFM_VIEWER=1`` forces it, ``NRSFM_VIEWER=0`` (or ``NRSFM_NO_VIEWER``, ``CI``, a
+    pytest run) turns it off. Otherwise: an IPython kernel started by a Jupyter server
+    (JupyterLab, Notebook: ``JPY_SESSION_NAME`` set) or by VS Code. A kernel run by
+    ``jupyter nbconvert --execute`` has no front end: it only prints the path.
+    """
     import os
     import sys
 
+    flag = os.environ.get("NRSFM_VIEWER")
+    if flag in ("0", "1"):
+        return flag == "1"
     if os.environ.get("CI") or os.environ.get("PYTEST_CURRENT_TEST") or os.environ.get(
             "NRSFM_NO_VIEWER"):
         return False
     ipy = sys.modules.get("IPython")
-    return ipy is not None and ipy.get_ipython() is not None
+    shell = ipy.get_ipython() if ipy is not None else None
+    if shell is None or getattr(shell, "kernel", None) is None:
+        return False
+    return bool(os.environ.get("JPY_SESSION_NAME") or os.environ.get("VSCODE_PID"))
 
 
-def show_recording(path, width=1000, height=700, blueprint=None):
-    """Embed a viewer of the ``.rrd`` at ``path`` when interactive; else print how to open it.
+def _offline_widget_assets():
+    """Make rerun-notebook inline its viewer (JS + wasm) instead of loading it from the web,
+    unless the user chose otherwise with ``RERUN_NOTEBOOK_ASSET``. Must run before
+    ``rerun_notebook`` is imported."""
+    import os
 
-    Embedding needs the ``rerun-notebook`` package and a live notebook front end; in
-    headless / CI runs (``CI``, pytest, or ``NRSFM_NO_VIEWER`` set) nothing is embedded.
-    ``blueprint``: a layout for the viewer (e.g. :func:`make_blueprint`).
+    os.environ.setdefault("RERUN_NOTEBOOK_ASSET", "inline")
+
+
+def show_recording(path, width=1000, height=720, blueprint=None):
+    """Embed a viewer of the ``.rrd`` at ``path`` in a live notebook; else print how to open it.
+
+    The file is sent to the embedded viewer as it is, so the viewer shows the recording
+    with its blueprint under the recording's own application id. The viewer's code is
+    inlined from the installed ``rerun-notebook`` package (works offline; set
+    ``RERUN_NOTEBOOK_ASSET`` to override). Needs the ``notebook`` extra. Headless runs
+    (``CI``, pytest, ``jupyter nbconvert --execute``; see :func:`_interactive`) embed
+    nothing.
+    ``width``, ``height``: pixels.
+    ``blueprint``: an optional layout that replaces the recording's own.
     Returns True when a viewer was embedded.
     """
     path = Path(path)
     if _interactive():
         try:
-            import rerun as rr
-            from rerun.chunk import RrdReader
+            _offline_widget_assets()
+            from rerun.notebook import Viewer
 
-            rec = rr.RecordingStream("nrsfm-viewer")
-            rec.notebook_show(width=width, height=height, blueprint=blueprint)
-            rec.send_chunks(RrdReader(path).stream())
+            viewer = Viewer(width=width, height=height, use_global_recording=False)
+            if blueprint is not None:
+                from rerun.chunk import RrdReader
+
+                app_ids = {s.application_id for s in RrdReader(path).recordings()}
+                for app in app_ids:
+                    viewer.set_application_blueprint(app, blueprint)
+            viewer.display()
+            viewer._viewer.send_rrd(path.read_bytes())
             return True
         except Exception as exc:  # viewer is optional: never break a run for it
             print(f"(no embedded viewer: {exc})")
-    print(f"open the recording with: rerun {path}")
+    shown = shown_path(path)
+    print(f"open the recording with: rerun {shown}   (headless or remote: rerun --web-viewer "
+          f"{shown})")
     return False

@@ -122,8 +122,19 @@ def test_stage_recording(tmp_path, seq, pinv_result):
         vals, it = column(data[f"/admm/{key}"]["temporal"], "Scalars:scalars", "admm_iteration")
         assert np.array_equal(it, np.arange(len(hist[key])))
         assert np.array_equal(np.ravel(vals), hist[key])          # float64, exact
-    vals = column(data["/admm_log10/rho"]["temporal"], "Scalars:scalars", "admm_iteration")[0]
-    np.testing.assert_allclose(np.ravel(vals), np.log10(hist["rho"]))
+    # the same history as static bar charts (visible on any timeline), log10 where it spans
+    # decades; nothing of it only on the admm_iteration timeline in the default views
+    for key in ("cost", "data_term", "residual", "rho"):
+        b = data[f"/admm_history/{key}"]
+        assert b["static"] and not b["temporal"], key
+        vals = np.asarray(column(b["static"], "BarChart:values")[0][0]["buffer"])
+        expect = hist[key] if key == "cost" else np.log10(hist[key])
+        np.testing.assert_allclose(vals, expect, rtol=1e-6)
+    n_kept = column(data["/rotation_samples/n_kept"]["temporal"], "Scalars:scalars", "frame")[0]
+    np.testing.assert_array_equal(np.ravel(n_kept), result.rotation_stage.kept.sum(axis=0))
+    theta = np.asarray(column(data["/singular_values/log10_theta"]["static"],
+                              "BarChart:values")[0][0]["buffer"])
+    np.testing.assert_allclose(theta, np.log10(result.shape_stage.theta), rtol=1e-6)
     for k in range(1, K + 1):
         kept = column(data[f"/rotation_samples/kept/triplet_{k}"]["temporal"],
                       "Scalars:scalars", "frame")[0]
@@ -268,3 +279,98 @@ def test_render_figures_script(tmp_path):
     assert names == ["synthetic_admm.png", "synthetic_cameras.png", "synthetic_shapes.png",
                      "synthetic_singular_values.png"]
     assert all((tmp_path / n).stat().st_size > 10_000 for n in names)
+
+
+def _views(node):
+    import rerun.blueprint as rrb
+
+    if isinstance(node, rrb.View):
+        yield node
+        return
+    for child in getattr(node, "contents", None) or []:
+        yield from _views(child)
+
+
+@pytest.mark.parametrize("stages", [True, False])
+def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result, stages):
+    """Each view of the default blueprint shows entities logged static or on ``frame``."""
+    from nrsfm.recording import make_blueprint
+
+    result = _stand_in_stages(pinv_result, seq) if stages else pinv_result
+    data = read_rrd(save_recording(result, tmp_path / "bp.rrd", seq))
+    bp = make_blueprint(recording_content(result, seq))
+    assert bp.time_panel is not None
+    views = list(_views(bp.root_container))
+    assert len(views) >= (15 if stages else 7), [v.name for v in views]
+    for v in views:
+        origin = str(v.origin)
+        contents = v.contents if isinstance(v.contents, list) else [origin]
+        prefixes = [c.rstrip("/*") for c in contents if not c.startswith("$")] or [origin]
+        shown = [p for p in data if any(p == q or p.startswith(q + "/") for q in prefixes)]
+        assert shown, f"view {v.name!r} ({origin}) has no entity"
+        visible = [p for p in shown if data[p]["static"] or any(
+            "frame" in b.schema.names for b in data[p]["temporal"])]
+        assert visible, f"view {v.name!r} shows nothing on the frame timeline"
+
+
+def _n_threads():
+    import os
+
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        psutil = pytest.importorskip("psutil")
+        return psutil.Process().num_threads()
+
+
+def test_save_recording_threads_bounded(tmp_path, seq, pinv_result):
+    """rerun-sdk keeps 2 threads per dropped stream until a sweep: save_recording sweeps."""
+    save_recording(pinv_result, tmp_path / "warm.rrd")
+    before = _n_threads()
+    for i in range(100):
+        save_recording(pinv_result, tmp_path / "loop.rrd")
+    after = _n_threads()
+    assert after <= before + 4, (before, after)
+
+
+def test_rendered_notebooks_in_sync():
+    """docs/notebooks/NN_*.md (executed notebooks with their figures, for readers of the
+    repository) exist for every notebook source, were rendered from its current text and
+    link only figures that exist. Re-render: python notebooks/build_notebooks.py --render."""
+    import hashlib
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sources = sorted((root / "notebooks" / "src").glob("[0-9][0-9]_*.py"))
+    if not sources:
+        pytest.skip("no notebooks in this checkout")
+    stale = []
+    for src in sources:
+        page = root / "docs" / "notebooks" / f"{src.stem}.md"
+        digest = hashlib.sha256(src.read_bytes()).hexdigest()
+        if not page.is_file() or f"sha256={digest}" not in page.read_text().splitlines()[0]:
+            stale.append(src.name)
+            continue
+        text = page.read_text()
+        images = re.findall(r"!\[[^\]]*\]\(([^)\s]+\.png)\)", text)
+        for img in images:
+            assert (page.parent / img).is_file(), (page.name, img)
+        if "plt.show()" in src.read_text():
+            assert images, f"{page.name} has no figure"
+    assert not stale, ("rendered notebooks out of date (run python notebooks/build_notebooks.py "
+                       f"--render): {stale}")
+
+
+def test_rrd_screenshot_script_errors(tmp_path):
+    """tools/rrd_screenshot.py: a missing recording is one error line, no traceback."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "tools" / "rrd_screenshot.py"
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "none.rrd"),
+                          str(tmp_path / "x.png")], capture_output=True, text=True, timeout=60)
+    assert out.returncode != 0
+    assert "no such recording" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "x.png").exists()

@@ -42,7 +42,8 @@ import numpy as np
 import data_tools
 import nrsfm
 from nrsfm import figures
-from nrsfm.recording import output_path, recording_content, save_recording, show_recording
+from nrsfm.recording import (output_path, recording_content, save_recording, show_recording,
+                             shown_path)
 
 # %% [markdown]
 # ## The data
@@ -124,6 +125,6 @@ plt.show()
 
 # %%
 rrd = save_recording(result, output_path("00_quickstart.rrd"), seq)
-print(f"wrote {rrd} ({rrd.stat().st_size / 1e6:.2f} MB)")
+print(f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB)")
 assert rrd.stat().st_size > 10_000
 show_recording(rrd)

@@ -32,9 +32,9 @@ from scipy.linalg import subspace_angles
 
 import data_tools
 import nrsfm
-from nrsfm import figures
+from nrsfm import figures, paths
 from nrsfm.measurement import centre_rows, factorize
-from nrsfm.recording import output_path, save_recording, show_recording
+from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 
 # %% [markdown]
 # ## Centring removes the translation
@@ -132,13 +132,18 @@ plt.show()
 # %% [markdown]
 # ## MoCap data (when `NRSFM_DATA` is set)
 #
+# `NRSFM_DATA` names the folder that holds `mocap/`; a relative path is taken from the
+# folder Jupyter (or the shell) was started in, not from this notebook's folder
+# (`nrsfm.paths.data_dir`).
+#
 # Real motion capture is not exactly low rank: the spectrum decays without a clean gap at
 # $3K$ (the paper's $K$ per sequence is a modelling choice, `data_tools.MOCAP_K`).
 
 # %%
 mocap = None
-if os.environ.get("NRSFM_DATA"):
-    mocap = data_tools.load_mocap("pickup")
+MOCAP = paths.data_dir() / "mocap" if os.environ.get("NRSFM_DATA") else None
+if MOCAP is not None and (MOCAP / "pickup.mat").is_file():
+    mocap = data_tools.load_mocap("pickup", data_dir=MOCAP)
     f_m = factorize(mocap.W, mocap.K)
     sm = f_m.singular_values
     print(f"{mocap}: rank-{3 * mocap.K} residual {f_m.residual:.4f}, "
@@ -147,7 +152,7 @@ if os.environ.get("NRSFM_DATA"):
     figures.singular_values_figure(sm, mark=3 * mocap.K, title="pickup: singular values of W")
     plt.show()
 else:
-    print("NRSFM_DATA not set: MoCap part skipped")
+    print("no MoCap data (set NRSFM_DATA to the folder holding mocap/): MoCap part skipped")
 
 # %% [markdown]
 # ## Recording
@@ -161,5 +166,5 @@ else:
 result = nrsfm.reconstruct(seq.W, K, method="pseudo_inverse", rotations=seq.rotations)
 assert np.allclose(result.factorization.singular_values * result.scale, s, rtol=1e-9)
 rrd = save_recording(result, output_path("01_measurement_svd.rrd"), seq)
-print(f"wrote {rrd} ({rrd.stat().st_size / 1e6:.2f} MB)")
+print(f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB)")
 show_recording(rrd)
