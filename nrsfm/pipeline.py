@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import blas_threads, check_K, check_measurements, check_rotations
+from ._validation import (blas_threads, check_centred_rank, check_K, check_measurements,
+                          check_rotations)
 from .measurement import Factorization, centre_rows, factorize
 from .scale import normalization_scale
 from .shape import pseudo_inverse_shapes, truncate_rank
@@ -57,6 +58,8 @@ class Reconstruction:
         Every setting used.
     timings : dict
         Seconds per stage.
+    diagnostics : nrsfm.diagnostics.Diagnostics or None
+        Measured quality signals and the flags raised (see :mod:`nrsfm.diagnostics`).
     """
 
     rotations: np.ndarray
@@ -72,6 +75,7 @@ class Reconstruction:
     shape_stage: object = None
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    diagnostics: object = None
 
     @property
     def n_frames(self):
@@ -200,6 +204,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     W = check_measurements(W)
     F, P = W.shape[0] // 2, W.shape[1]
     K = check_K(K, F, P)
+    K = check_centred_rank(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
     say = _progress_printer(progress)
@@ -240,6 +245,10 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
             X_init, shapes = shape_stage.X_init, shape_stage.shapes
         timings["shape"] = time.perf_counter() - t0
 
+    from .diagnostics import diagnose
+
+    diagnostics = diagnose(Wc, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
+    diagnostics.warn(stacklevel=2)
     params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
                   shape_prior=prior, rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
@@ -247,7 +256,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     return Reconstruction(rotations=rotations, shapes=shapes * scale, method=method, K=K,
                           W=Wc, row_means=row_means, scale=scale, factorization=fact,
                           X_init=X_init * scale, rotation_stage=rotation_stage,
-                          shape_stage=shape_stage, params=params, timings=timings)
+                          shape_stage=shape_stage, params=params, timings=timings,
+                          diagnostics=diagnostics)
 
 
 class _nullcontext:

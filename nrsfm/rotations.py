@@ -497,7 +497,8 @@ _DEFAULTS = dict(
     window=0.5,              # window length (fraction of F) for window triplets
     subsets="windows",       # "windows", "bootstrap" or "random" frame subsets
     n_triplets=None,         # default K
-    starts="relaxed",        # triplet starts, see nrsfm.corrective.corrective_triplets
+    starts="search",         # triplet starts, see nrsfm.corrective.corrective_triplets
+    hits=2, max_starts=40,   # stopping rule of nrsfm.corrective.search_triplet
     lam=1e2,                 # penalty of nrsfm.corrective.penalized_gram
     gram="penalized",        # relaxation whose column blocks "literal" refines
     n_random=32, n_full=4, screen_frames=80, screen_iter=30,
@@ -592,8 +593,10 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
                               n_full=max(p["n_full"], m if strategy == "multistart" else 0),
                               screen_frames=p["screen_frames"],
                               screen_iter=p["screen_iter"], sdp_solver=p["sdp_solver"],
-                              refine=p["refine"], lam=p["lam"], gram=p["gram"])
+                              refine=p["refine"], lam=p["lam"], gram=p["gram"],
+                              hits=p["hits"], max_starts=p["max_starts"])
     info.update(corrective_costs=cor.costs, corrective_starts=cor.info["starts"],
+                corrective_search=cor.info.get("search"),
                 sdp={k: cor.info[k] for k in ("penalized", "nuclear") if k in cor.info},
                 corrective_timings=cor.timings)
     G_best = cor.G[0]
