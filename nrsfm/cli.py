@@ -25,6 +25,8 @@ def _num(x):
 
 def _report(result, seq=None):
     print(result.summary())
+    for flag in getattr(getattr(result, "diagnostics", None), "flags", []):
+        print(f"  WARNING: {flag}")       # the NRSfMWarning, printed once (see main)
     if seq is not None and seq.shapes is not None:
         errs = result.errors(seq.shapes, seq.rotations)
         parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
@@ -153,8 +155,14 @@ def build_parser():
 
 
 def main(argv=None):
+    import warnings
+
+    from .diagnostics import NRSfMWarning
+
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NRSfMWarning)   # _report prints the flags
+        return args.func(args)
 
 
 if __name__ == "__main__":

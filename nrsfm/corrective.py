@@ -232,7 +232,7 @@ def _admm_nuclear(N, psd, max_iter, tol, rho):
 
 
 def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
-                   return_info=False):
+                   return_info=False, _cache=None):
     """A convex relaxation that does land near the best triplet on the benchmark.
 
     ``minimise  a trace(Q) + (lam / F) ||A vech(Q)||^2
@@ -284,7 +284,12 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
         Q = 0.5 * (Qv.value + Qv.value.T)
         info = dict(solver="cvxpy-scs", status=prob.status)
     elif solver == "admm":
-        e, V = np.linalg.eigh(At.T @ At)
+        if _cache is not None and "eig" in _cache:     # independent of lam: reuse
+            e, V = _cache["eig"]
+        else:
+            e, V = np.linalg.eigh(At.T @ At)
+            if _cache is not None:
+                _cache["eig"] = (e, V)
         e = np.clip(e, 0, None) * (2.0 * lam / F)
         Vt_t, Vt_c = V.T @ t, V.T @ c
 
@@ -635,8 +640,10 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
 
     stopped = "max_starts"
     n_random = 0
+    cache = {}
     for lam in lams:
-        Q, pinfo = penalized_gram(M, K, lam=lam, solver=sdp_solver, return_info=True)
+        Q, pinfo = penalized_gram(M, K, lam=lam, solver=sdp_solver, return_info=True,
+                                  _cache=cache)
         info["penalized"].append(pinfo)
         add(f"relaxed(lam={lam:g})", triplets_from_gram(Q, "eig")[0])
         if done():

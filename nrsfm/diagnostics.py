@@ -13,8 +13,9 @@ Signals (name: meaning; flagged when)
   another signal is flagged too (it is then the likely cause) or the rotations were
   given; otherwise a note: shark has rank 5 < 3K = 9 and is reconstructed at the
   published accuracy, its triplet confirmed at noise level.
-* ``rank_gap``: ``s_3K / s_3K+1``; flagged below ``RANK_GAP_MIN`` (3K cuts inside a
-  cluster of singular values: the factorisation's column space is not determined).
+* ``rank_gap``: ``s_3K / s_3K+1``; a note below ``RANK_GAP_MIN`` (3K cuts inside the
+  noise floor of the singular values), not a flag: on pickup, drink, yoga and dance with
+  track noise of 5% or more the gap is 1.004-1.027 while the rotations stay accurate.
 * ``condition``: ``s_1 / s_3K`` of W, the condition of the factorisation; flagged above
   ``CONDITION_MAX``.
 * ``triplet_cost_ratio``: Dai's cost of the best triplet divided by the cost the noise
@@ -63,7 +64,8 @@ SIGN_FRACTION_MAX = 0.10
 #: smallest acceptable largest angle between a viewing direction and their mean (degrees)
 CAMERA_SPREAD_MIN_DEG = 10.0
 
-THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank="< 3K", rank_gap=f"< {RANK_GAP_MIN}",
+THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank="< 3K (note unless another flag)",
+                  rank_gap=f"< {RANK_GAP_MIN} (note)",
                   condition=f"> {CONDITION_MAX:g}", triplet_cost_ratio=f"> {COST_RATIO_MAX}",
                   kept_fraction=f"< {KEPT_MIN}",
                   smoothness_sign_fraction=f"> {SIGN_FRACTION_MAX}",
@@ -209,9 +211,11 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
     nxt = s[r] if s.size > r else 0.0
     gap = float(s[r - 1] / nxt) if nxt > 0 else np.inf
     sig["rank_gap"] = gap
+    notes = []
     if rank >= r and gap < RANK_GAP_MIN:
-        flags.append(f"no gap in the singular values of W at 3K = {r}: s_3K / s_3K+1 = "
-                     f"{gap:.3g} < {RANK_GAP_MIN}")
+        notes.append(f"no gap in the singular values of W at 3K = {r}: s_3K / s_3K+1 = "
+                     f"{gap:.4g} < {RANK_GAP_MIN} (the last components of the rank-3K model are at "
+                     f"the noise level)")
     cond = float(s[0] / s[r - 1]) if s[r - 1] > 0 else np.inf
     sig["condition"] = cond
     if rank >= r and cond > CONDITION_MAX:
@@ -278,7 +282,6 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
                              f"({P // 2} frames, {twoF} points) it fits orthographic "
                              f"cameras far better (Dai's cost per frame {there:.3g} against "
                              f"{here:.3g}); pass W.T if W is (P, 2F)")
-    notes = []
     if rank_msg is not None:
         # A rank-deficient W with a confirmed, noise-level triplet is not by itself a failure
         # (shark: rank 5 < 3K = 9, e3d at the paper's level): a note then, a flag (and the
