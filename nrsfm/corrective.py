@@ -619,6 +619,7 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
     minima = []                     # [cost, G, name, count]
     history = []
     info = {"penalized": []}
+    Q = None
 
     def add(name, G0):
         G, inf = refine_triplet(G0, M, method=refine, max_iter=max_iter)
