@@ -1,6 +1,6 @@
 """Rotation and shape error under track noise on pickup (the paper's Fig. 3a-b).
 
-    NRSFM_DATA=../shared/data python benchmarks/noise_study.py [--sequence pickup]
+    NRSFM_DATA=/path/to/data python benchmarks/noise_study.py [--sequence pickup]
         [--sigmas 0.01 0.05 0.10 0.15 0.20 0.25] [--seeds 10] [--methods organic bmm]
         [--plot docs/figures/noise_study.png]
 

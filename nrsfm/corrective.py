@@ -9,28 +9,21 @@ Stages, each a function named by what it maps:
 * :func:`constraint_matrix`: M_hat (2F, 3K) -> A (2F, n(n+1)/2) acting on vech(Q), n = 3K.
 * :func:`solution_space`: A -> basis (n(n+1)/2, 2K^2 - K), the right singular vectors of
   the smallest singular values.
-* :func:`relaxed_gram`: basis -> Q, the minimum nuclear-norm point of the solution space
-  with coefficients summing to 1 (Dai's convex relaxation, an SDP). Solved by a small ADMM
-  written here (eigenvalue soft-thresholding of one 3K x 3K matrix per iteration): the
-  same optimum as cvxpy + SCS (nuclear norm 0.36075 on pickup, both) in 0.07-0.15 s
-  instead of 2-3 s, most of which is cvxpy's compilation. Adding ``Q PSD`` makes the
-  problem infeasible on the benchmark (noise takes the PSD triplets out of the
-  approximate null space), so Q is left indefinite.
-* :func:`penalized_gram`: M_hat -> Q, the relaxation used by default: PSD Q minimising
-  ``trace(Q)`` plus a penalty on Dai's constraint residual, with the mean squared camera
-  scale fixed to 1. Its top-3 eigenpairs refine to the lowest-cost minimum of Dai's cost
-  on all 8 MoCap sequences (one refinement, 0.01-0.2 s for the whole stage).
+* :func:`relaxed_gram`: basis -> Q, Dai's convex relaxation (minimum nuclear norm over the
+  solution space, coefficients summing to 1), solved by a small ADMM (cvxpy + SCS kept
+  for cross-checking).
+* :func:`penalized_gram`: M_hat -> Q, a PSD relaxation (trace plus a penalty on Dai's
+  constraint residual, mean squared camera scale fixed to 1).
 * :func:`triplets_from_gram`: Q -> G from the top-3 eigenpairs (or the K column blocks).
 * :func:`refine_triplet`: G -> G minimising Dai's cost
   ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2`` (r1, r2 the rows of M_f G)
-  by Levenberg-Marquardt on the 2F residuals with the analytic Jacobian (tens of
-  iterations; scipy L-BFGS on the same cost needs thousands and is kept as an option).
-* :func:`corrective_triplets`: all of the above. Dai's relaxation as specified
-  (``starts="dai"``) is a poor start on the benchmark (its refinement ends in a minimum
-  50-10^4 x costlier than the best, e_R about 1, on 6 of 8 sequences); the penalised
-  relaxation (``starts="relaxed"``, default) and a screened multistart
-  (``starts="multistart"``) both reach the best minimum everywhere
-  (pickup e_R 0.118, yoga 0.098, stretch 0.0675, drink 0.0071).
+  by Levenberg-Marquardt on the 2F residuals with the analytic Jacobian.
+* :func:`search_triplet`: multistart over the relaxations and seeded random starts,
+  stopped once the lowest cost has been reached by two starts (the default).
+* :func:`corrective_triplets`: all of the above, selected by ``starts``.
+
+Measurements behind these choices (which starts reach the best minimum, with and without
+track noise, and at what cost): ``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -243,9 +236,8 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
     intersection of the approximate null space with the PSD cone is empty on real data,
     see :func:`relaxed_gram`), the normalisation fixes the mean squared camera scale
     ``mean_f |c_f|^2`` to 1 instead of an arbitrary sum of basis coefficients, and the
-    trace (nuclear norm on the PSD cone) pushes the solution to low rank. On the 8 MoCap
-    sequences its top-3 eigenpairs refine to the lowest-cost minimum of Dai's cost for
-    ``lam`` in 1e2..1e6 (checked with cvxpy + SCS).
+    trace (nuclear norm on the PSD cone) pushes the solution to low rank. Which ``lam``
+    reaches the best minimum with and without noise: ``docs/rotation_stage.md``.
 
     Parameters
     ----------
@@ -672,26 +664,27 @@ def corrective_triplets(M_hat, K, starts="search", seed=0, n_random=32, n_full=4
     ----------
     M_hat : (2F, 3K) ndarray
     K : int
-    starts : {"relaxed", "dai", "columns", "multistart"}
+    starts : {"search", "relaxed", "dai", "columns", "multistart"}
         Where the refinement starts.
 
-        * ``relaxed`` (default): the top-3 eigenpairs of :func:`penalized_gram` (PSD,
-          trace + penalised constraint residual, mean camera scale 1): one refinement.
+        * ``search`` (default): :func:`search_triplet` (``hits``, ``max_starts``): the
+          relaxation at the penalties :data:`SEARCH_LAMBDAS`, then seeded random starts,
+          until the lowest cost has been reached by ``hits`` starts.
+        * ``relaxed``: the top-3 eigenpairs of :func:`penalized_gram` (PSD, trace +
+          penalised constraint residual, mean camera scale 1): one refinement.
         * ``dai``: the top-3 eigenpairs of Dai's relaxation as specified
-          (:func:`relaxed_gram`: minimum nuclear norm over the approximate null space,
-          basis coefficients summing to 1). On the benchmark this start ends in a minimum
-          50-10^4 x costlier than the best one (e_R about 1).
+          (:func:`relaxed_gram`).
         * ``columns``: the K column blocks of the relaxed Gram matrix (``gram`` selects
           which relaxation), each refined on all frames: the paper's "K column triplets"
           read literally.
         * ``multistart``: the ``relaxed`` and ``dai`` starts, the K column blocks of the
           nuclear-norm relaxation and ``n_random`` seeded Gaussian starts, each refined for
           ``screen_iter`` LM iterations on about ``screen_frames`` evenly spaced frames;
-          the ``n_full`` lowest screened costs are refined on all frames. A cross-check of
-          ``relaxed``: on all 8 MoCap sequences and for seeds 0-5 both end in the same
-          minimum.
+          the ``n_full`` lowest screened costs are refined on all frames.
     seed : int
         Seed of the random starts.
+    hits, max_starts : int
+        Stopping rule of ``starts="search"``.
     lam : float
         Penalty of :func:`penalized_gram`.
     gram : {"penalized", "nuclear"}

@@ -14,29 +14,13 @@ Conventions
 * The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
   :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
 
-Where the K triplets come from (the paper says only "using Dai et al." for every k)
-----------------------------------------------------------------------------------
-The best triplet comes from :func:`nrsfm.corrective.corrective_triplets` (penalised convex
-relaxation + Levenberg-Marquardt). Dai's cost has one good minimum on the benchmark (the
-valid triplets form a K-dimensional family that noise reduces to one best member): the K column triplets of the relaxed
-solution, refined, either fall into that minimum or into far worse ones, so the paper's
-recipe read literally (strategy ``literal``) returns the best single triplet's rotations.
-Triplets refined on subsets of the frames (started from the best one) carry different
-errors. Measured (``benchmarks/rotation_study.py --e3d-repeats 4``; e3d averaged over four
-shape runs because per-frame rotation changes of 1e-4 rad already move e3d by up to 10%):
-
-* half-length temporal windows lower e_R a lot (yoga 0.098 -> 0.045, stretch 0.068 ->
-  0.037, drink 0.0071 -> 0.0059) but raise e3d by about 9% on average (yoga +40%);
-* windows of 90% of the frames (default ``organic``) lower e_R on all four sequences with
-  ground truth (pickup 0.114, yoga 0.096, stretch 0.035, drink 0.0069); mean e3d / paper
-  1.002 over the 7 sequences other than shark, against 0.993 for the single triplet;
-* bootstrap resamples (``bootstrap``) land next to the best triplet (e_R within 5% of it),
-  mean e3d / paper 0.987. The three differ by less than the e3d noise (stretch and dance
-  move in opposite directions), so e_R broke the tie.
-
-With the paper's shape-stage constants, even ground-truth rotations give a higher e3d
-than the single triplet on yoga and stretch: the shape stage does not turn better
-rotations into better shapes, so e3d selects rotations close to the best triplet.
+Where the K triplets come from (the paper says only "using Dai et al." for every k): the
+best triplet from :func:`nrsfm.corrective.corrective_triplets`, K - 1 triplets refined on
+temporal windows, and (default ``organic``) the K-dimensional family of triplets
+consistent with their average, combined per frame by signal-to-noise weights
+(:func:`triplet_family`, :func:`combine_family`). The measurements behind these choices
+(strategies on the 8 MoCap sequences, behaviour under track noise) are in
+``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -581,13 +565,13 @@ _DEFAULTS = dict(
     average="l1",            # "l1" (Alg. 1) or "chordal" (L2, for the ablation)
     refit=False,             # project the average back onto one triplet (see below)
     combine=None,            # "family": maximum-ratio combination of the triplet family
+    combine_iter=5,          # at most this many family <-> rotation alternations ...
+    combine_tol=1e-3,        # ... stopped when the median per-frame change (rad) is below
 )
 
 _STRATEGY_DEFAULTS = {
-    # chosen on the 8 MoCap sequences (benchmarks/rotation_study.py --e3d-repeats 4):
-    # bootstrap, single triplet and 90% windows tie on e3d (mean e3d / paper 0.987, 0.993,
-    # 1.002; stretch and dance move in opposite directions); 90% windows lower e_R on all
-    # four sequences with ground truth, so they are the default.
+    # chosen by benchmarks/rotation_study.py and benchmarks/noise_study.py
+    # (docs/rotation_stage.md)
     "organic": dict(subsets="windows", window=0.9, filter_against="average",
                     combine="family"),
     "windows": dict(window=0.5, filter_against=None),
@@ -609,11 +593,13 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
     strategy : str
         One of :data:`STRATEGIES`:
 
-        * ``organic`` (default): the best triplet (penalised relaxation + refinement of
-          Dai's cost, :func:`nrsfm.corrective.corrective_triplets`) plus K - 1 triplets
-          refined on temporal windows of 90% of the frames; register (flip-aware Eq. 3),
-          filter at delta = 0.05 rad from the L1 average of the samples, per-frame L1
-          average (Alg. 1), depth signs by smoothness.
+        * ``organic`` (default): the best triplet (the search of
+          :func:`nrsfm.corrective.corrective_triplets`) plus K - 1 triplets refined on
+          temporal windows of 90% of the frames; register (flip-aware Eq. 3), filter at
+          delta = 0.05 rad from the L1 average of the samples, per-frame L1 average
+          (Alg. 1); then the K triplets of the family consistent with that average,
+          combined per frame by maximum-ratio weights (``combine="family"``); depth
+          signs by smoothness.
         * ``bmm``: the best triplet only (Dai et al.).
         * ``literal``: the K column triplets of the relaxed Gram matrix, each refined,
           registered to the lowest-cost one, filtered, L1-averaged.
@@ -631,7 +617,11 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
         ``|c_fk|`` in the average), ``window`` (fraction of F), ``subsets`` ("windows" |
         "bootstrap" | "random"), ``n_triplets`` (default K), ``average`` ("l1" |
         "chordal"), ``refit`` (replace the average by the rotations of the single triplet
-        that fits it best, :func:`triplet_from_rotations`), ``n_random``, ``n_full``,
+        that fits it best, :func:`triplet_from_rotations`), ``combine`` (None |
+        "family", :func:`combine_family`, alternated with :func:`triplet_family` at most
+        ``combine_iter`` times until the median per-frame change is below ``combine_tol``
+        rad), ``hits`` and ``max_starts`` (stopping rule
+        of the triplet search), ``n_random``, ``n_full``,
         ``screen_frames``, ``screen_iter``, ``sdp_solver``, ``refine``, ``max_iter``,
         ``eps``.
 
@@ -765,9 +755,16 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
     if p["combine"] == "family" and K > 1:
         t0 = time.perf_counter()
         sv = np.sum(M ** 2, axis=0)                        # M_hat = U sqrt(S): |col|^2 = s
-        G_fam, fam_eig = triplet_family(M, final, K)
-        final, fam_w = combine_family(M, G_fam, final, sv)
-        info.update(G_family=G_fam, family_eigenvalues=fam_eig, family_weights=fam_w)
+        steps = []
+        for _ in range(max(1, int(p["combine_iter"]))):   # family <-> rotations, alternated
+            G_fam, fam_eig = triplet_family(M, final, K)
+            new, fam_w = combine_family(M, G_fam, final, sv)
+            steps.append(float(np.median(rotation_angle(new, final))))
+            final = new
+            if steps[-1] < p["combine_tol"]:
+                break
+        info.update(G_family=G_fam, family_eigenvalues=fam_eig, family_weights=fam_w,
+                    combine_steps=np.array(steps))
         timings["combine"] = time.perf_counter() - t0
     elif p["combine"] not in (None, "family"):
         raise ValueError(f"unknown combine {p['combine']!r}")
