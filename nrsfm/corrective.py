@@ -619,10 +619,8 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         history.append((name, float(c), int(inf["iterations"])))
         for mn in minima:
             if abs(mn[0] - c) <= rtol * max(abs(mn[0]), 1e-12):
-                mn[3] += 1
-                if c < mn[0]:
-                    mn[0], mn[1] = c, G
-                return
+                mn[3] += 1            # same minimum: keep the first start's triplet (its
+                return                # gauge), so round-off cannot switch between them
         minima.append([c, G, name, 1])
 
     def done():
