@@ -9,5 +9,5 @@ from .pipeline import METHODS, Reconstruction, reconstruct
 
 __version__ = "0.1.0"
 
-__all__ = ["METHODS", "NRSfMWarning", "Reconstruction", "reconstruct", "e3d", "e3d_akhter", "rotation_error",
-           "__version__"]
+__all__ = ["METHODS", "NRSfMWarning", "Reconstruction", "reconstruct", "e3d", "e3d_akhter",
+           "rotation_error", "__version__"]

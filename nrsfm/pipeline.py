@@ -171,7 +171,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Measurements: rows ``x_f, y_f`` interleaved, or per-frame tracks. Rows are
         centred here (per-frame translation is removed).
     K : int
-        Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P)``.
+        Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P - 1)``.
     method : {"organic", "bmm", "wnn", "pseudo_inverse"}
         ``organic`` (default): all K corrective triplets, registered, filtered and
         L1-averaged rotations; shape by partial-sum weighted nuclear norm ADMM (N = 1).
@@ -197,7 +197,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     Raises
     ------
     ValueError
-        Bad shapes, non-finite input, K out of range, unknown method, bad rotations.
+        Bad shapes, non-finite input, K out of range (including 3K above
+        ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, bad
+        rotations.
+
+    Warns
+    -----
+    nrsfm.NRSfMWarning
+        When a quality signal of the run crosses its threshold (``result.diagnostics``).
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
