@@ -64,6 +64,25 @@ def check_K(K, F, P):
     return K
 
 
+def check_centred_rank(K, F, P):
+    """3K against the largest rank a row-centred W can have: ``rank(W) <= min(2F, P - 1)``.
+
+    Centring the rows makes the columns sum to zero, so one direction of the column space
+    is lost; a rank-3K factorisation of such a W is then not determined.
+
+    Raises
+    ------
+    ValueError
+        ``3K > min(2F, P - 1)``, naming both numbers.
+    """
+    bound = min(2 * F, P - 1)
+    if 3 * K > bound:
+        raise ValueError(
+            f"K={K} is too large for the data: a row-centred W of {2 * F} rows and {P} "
+            f"points has rank at most min(2F, P - 1) = {bound}, below 3K = {3 * K}")
+    return K
+
+
 def check_rotations(R, name="R", n_frames=None, allow_orthographic=False, atol=1e-6):
     """Return camera rotations as a float (F, 3, 3) array, or (F, 2, 3) where allowed.
 

@@ -90,6 +90,8 @@ def _num(x):
 def _report(result, seq=None):
     print(result.summary())
     errs = {}
+    for flag in getattr(getattr(result, "diagnostics", None), "flags", []):
+        print(f"  WARNING: {flag}")       # the NRSfMWarning, printed once (see main)
     if seq is not None and seq.shapes is not None:
         errs = result.errors(seq.shapes, seq.rotations)
         parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
@@ -406,10 +408,15 @@ def main(argv=None):
     """Run the command line; returns the exit status (errors: one line on stderr)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    from .diagnostics import NRSfMWarning
+
     saved = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            # the report prints the diagnostics' flags; other warnings are one line each
+            warnings.filterwarnings("ignore", category=NRSfMWarning)
+            return args.func(args)
     except UsageError as exc:
         _fail(f"nrsfm {args.command}: error: {_one_line(exc)}", EXIT_USAGE)
     except KeyboardInterrupt:

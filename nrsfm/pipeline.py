@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import (blas_threads, check_K, check_measurements, check_rotations,
-                          power_of_two_scale)
+from ._validation import (blas_threads, check_centred_rank, check_K, check_measurements,
+                          check_rotations, power_of_two_scale)
 from .measurement import Factorization, centre_rows, factorize
 from .scale import normalization_scale
 from .shape import pseudo_inverse_shapes, truncate_rank
@@ -58,6 +58,8 @@ class Reconstruction:
         Every setting used.
     timings : dict
         Seconds per stage.
+    diagnostics : nrsfm.diagnostics.Diagnostics or None
+        Measured quality signals and the flags raised (see :mod:`nrsfm.diagnostics`).
     """
 
     rotations: np.ndarray
@@ -73,6 +75,7 @@ class Reconstruction:
     shape_stage: object = None
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    diagnostics: object = None
 
     @property
     def n_frames(self):
@@ -170,7 +173,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Measurements: rows ``x_f, y_f`` interleaved, or per-frame tracks. Rows are
         centred here (per-frame translation is removed).
     K : int
-        Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P)``.
+        Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P - 1)``.
     method : {"organic", "bmm", "wnn", "pseudo_inverse"}
         ``organic`` (default): all K corrective triplets, registered, filtered and
         L1-averaged rotations; shape by partial-sum weighted nuclear norm ADMM (N = 1).
@@ -202,7 +205,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     Raises
     ------
     ValueError
-        Bad shapes, non-finite input, K out of range, unknown method, bad rotations.
+        Bad shapes, non-finite input, K out of range (including 3K above
+        ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, bad
+        rotations.
+
+    Warns
+    -----
+    nrsfm.NRSfMWarning
+        When a quality signal of the run crosses its threshold (``result.diagnostics``).
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
@@ -214,6 +224,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     W = check_measurements(W)
     F, P = W.shape[0] // 2, W.shape[1]
     K = check_K(K, F, P)
+    K = check_centred_rank(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
     say = _progress_printer(progress)
@@ -261,6 +272,10 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
             X_init, shapes = shape_stage.X_init, shape_stage.shapes
         timings["shape"] = time.perf_counter() - t0
 
+    from .diagnostics import diagnose
+
+    diagnostics = diagnose(Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
+    diagnostics.warn(stacklevel=2)
     params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
                   shape_prior=prior, shape_solver=shape_solver,
                   rotation_options=dict(rotation_options or {}),
@@ -273,7 +288,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     return Reconstruction(rotations=rotations, shapes=shapes_out, method=method, K=K,
                           W=Wc, row_means=row_means, scale=scale, factorization=fact,
                           X_init=X_init_out, rotation_stage=rotation_stage,
-                          shape_stage=shape_stage, params=params, timings=timings)
+                          shape_stage=shape_stage, params=params, timings=timings,
+                          diagnostics=diagnostics)
 
 
 class _nullcontext:

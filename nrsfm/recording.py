@@ -293,6 +293,8 @@ def _report(result, sequence, c):
     lines += [f"| {k} | {_fmt(v)} |" for k, v in result.params.items()]
     lines += ["", "## Timings (s)", "", "| stage | seconds |", "| --- | --- |"]
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    if getattr(result, "diagnostics", None) is not None:
+        lines += ["", "## Diagnostics", "", "```", result.diagnostics.summary(), "```"]
     lines += ["", "## Display", "",
               ("Estimated shapes are similarity-aligned per frame onto the ground truth (as in "
                "e3d)." if c.aligned else "No ground-truth shapes: shapes drawn as estimated."),

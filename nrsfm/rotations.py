@@ -14,29 +14,13 @@ Conventions
 * The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
   :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
 
-Where the K triplets come from (the paper says only "using Dai et al." for every k)
-----------------------------------------------------------------------------------
-The best triplet comes from :func:`nrsfm.corrective.corrective_triplets` (penalised convex
-relaxation + Levenberg-Marquardt). Dai's cost has one good minimum on the benchmark (the
-valid triplets form a K-dimensional family that noise reduces to one best member): the K column triplets of the relaxed
-solution, refined, either fall into that minimum or into far worse ones, so the paper's
-recipe read literally (strategy ``literal``) returns the best single triplet's rotations.
-Triplets refined on subsets of the frames (started from the best one) carry different
-errors. Measured (``benchmarks/rotation_study.py --e3d-repeats 4``; e3d averaged over four
-shape runs because per-frame rotation changes of 1e-4 rad already move e3d by up to 10%):
-
-* half-length temporal windows lower e_R a lot (yoga 0.098 -> 0.045, stretch 0.068 ->
-  0.037, drink 0.0071 -> 0.0059) but raise e3d by about 9% on average (yoga +40%);
-* windows of 90% of the frames (default ``organic``) lower e_R on all four sequences with
-  ground truth (pickup 0.114, yoga 0.096, stretch 0.035, drink 0.0069); mean e3d / paper
-  1.002 over the 7 sequences other than shark, against 0.993 for the single triplet;
-* bootstrap resamples (``bootstrap``) land next to the best triplet (e_R within 5% of it),
-  mean e3d / paper 0.987. The three differ by less than the e3d noise (stretch and dance
-  move in opposite directions), so e_R broke the tie.
-
-With the paper's shape-stage constants, even ground-truth rotations give a higher e3d
-than the single triplet on yoga and stretch: the shape stage does not turn better
-rotations into better shapes, so e3d selects rotations close to the best triplet.
+Where the K triplets come from (the paper says only "using Dai et al." for every k): the
+best triplet from :func:`nrsfm.corrective.corrective_triplets`, K - 1 triplets refined on
+temporal windows, and (default ``organic``) the K-dimensional family of triplets
+consistent with their average, combined per frame by signal-to-noise weights
+(:func:`triplet_family`, :func:`combine_family`). The measurements behind these choices
+(strategies on the 8 MoCap sequences, behaviour under track noise) are in
+``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -52,7 +36,8 @@ from .corrective import corrective_triplets, refine_triplet, triplet_cost
 __all__ = ["RotationResult", "STRATEGIES", "project_to_so3", "rotations_from_triplets",
            "register_rotations", "filter_rotations", "average_rotations",
            "chordal_mean", "rotation_angle", "resolve_depth_signs", "window_triplets",
-           "estimate_rotations", "triplet_from_rotations"]
+           "estimate_rotations", "triplet_from_rotations", "triplet_family",
+           "combine_family"]
 
 FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
 MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
@@ -61,7 +46,9 @@ MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
 STRATEGIES = {
     "organic": "default: the best triplet plus K-1 triplets refined on temporal windows "
                "of 90% of the frames (leave-10%-out), registered, filtered at delta "
-               "against their L1 average, L1-averaged",
+               "against their L1 average, L1-averaged; then the K triplets of the family "
+               "consistent with that average, combined per frame by signal-to-noise "
+               "weights (maximum-ratio combination)",
     "bmm": "Dai et al.: the best single triplet only",
     "literal": "the paper read literally: the K column triplets of the relaxed Gram "
                "matrix, each refined; register to the lowest-cost one; filter at delta; "
@@ -436,6 +423,77 @@ def triplet_from_rotations(M_hat, R, G0, n_iter=30):
     return G, s
 
 
+# --------------------------------------------------------------------------- combining
+def triplet_family(M_hat, R, K):
+    """The K triplets most consistent with given rotations: ``M_f G ~ c_f R_f[:2]``.
+
+    For fixed rotations the valid triplets form a linear family (``G_full (a (x) I_3)``,
+    a in R^K, for the true corrective matrix G_full): the null space of the map
+    ``G -> (I - P_f) vec(M_f G)`` over all frames, P_f the projection onto ``R_f[:2]``.
+    Returned: the K eigenvectors of its Gram matrix with the smallest eigenvalues.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    R : (F, 3, 3) ndarray
+    K : int
+
+    Returns
+    -------
+    G : (K, 3K, 3) ndarray, unit Frobenius norm each
+    eigenvalues : (K,) ndarray, relative to the largest one (small = consistent)
+    """
+    M = np.asarray(M_hat, float)
+    F, n = M.shape[0] // 2, M.shape[1]
+    Mf = M.reshape(F, 2, n)
+    # vec(M_f G) (row-major 2 x 3) = A_f vec(G), vec(G) row-major (3K x 3)
+    A = np.einsum("fil,jm->fijlm", Mf, np.eye(3)).reshape(F, 6, 3 * n)
+    r = np.asarray(R, float)[:, :2].reshape(F, 6) / np.sqrt(2.0)
+    PA = A - r[:, :, None] * np.einsum("fa,faj->fj", r, A)[:, None, :]
+    H = A.reshape(-1, 3 * n).T @ PA.reshape(-1, 3 * n)
+    w, V = np.linalg.eigh(0.5 * (H + H.T))
+    return V[:, :K].T.reshape(K, n, 3), w[:K] / max(w[-1], 1e-300)
+
+
+def combine_family(M_hat, G, R_ref, singular_values=None):
+    """Per-frame maximum-ratio combination of the K family triplets' camera blocks.
+
+    Each block ``B_fk = M_f G^k`` is ``c_fk R_f[:2]`` plus noise whose variance is
+    proportional to ``g_k = ||S^-1/2 G^k||_F^2`` (noise on W reaches M_hat through
+    ``S^-1/2``, S the top 3K singular values). The combination
+    ``sum_k (c_fk / g_k) B_fk`` (``c_fk = <B_fk, R_ref,f[:2]> / 2``, each triplet's
+    3 x 3 gauge first aligned to ``R_ref`` by Procrustes) weights every sample by its
+    signal-to-noise ratio; its rows, completed by their cross product and projected onto
+    SO(3), give R_f.
+
+    Returns
+    -------
+    R : (F, 3, 3) ndarray
+    weights : (K, F) ndarray, ``c_fk^2 / g_k`` (the samples' relative information)
+    """
+    M = np.asarray(M_hat, float)
+    F = M.shape[0] // 2
+    s = np.sum(M ** 2, axis=0) if singular_values is None else \
+        np.asarray(singular_values, float)[:M.shape[1]]
+    ref = np.asarray(R_ref, float)[:, :2]
+    B = np.einsum("ri,kij->krj", M, G).reshape(len(G), F, 2, 3)
+    S = np.zeros((F, 2, 3))
+    weights = np.zeros((len(G), F))
+    for k in range(len(G)):
+        g = float(np.sum(G[k] ** 2 / s[:, None]))
+        c = np.einsum("fij,fij->f", B[k], ref)
+        N = np.einsum("f,fij,fik->jk", np.sign(c), B[k], ref)       # gauge (Procrustes)
+        U, _, Vt = np.linalg.svd(N)
+        Bk = B[k] @ (U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0]) @ Vt)
+        c = 0.5 * np.einsum("fij,fij->f", Bk, ref)
+        S += (c / g)[:, None, None] * Bk
+        weights[k] = c ** 2 / g
+    L = np.concatenate([S, np.cross(S[:, 0], S[:, 1])[:, None]], axis=1)
+    bad = ~(np.linalg.norm(L[:, 2], axis=1) > 0)
+    L[bad] = np.asarray(R_ref, float)[bad]
+    return project_to_so3(L), weights
+
+
 # --------------------------------------------------------------------------- result
 @dataclass
 class RotationResult:
@@ -497,7 +555,8 @@ _DEFAULTS = dict(
     window=0.5,              # window length (fraction of F) for window triplets
     subsets="windows",       # "windows", "bootstrap" or "random" frame subsets
     n_triplets=None,         # default K
-    starts="relaxed",        # triplet starts, see nrsfm.corrective.corrective_triplets
+    starts="search",         # triplet starts, see nrsfm.corrective.corrective_triplets
+    hits=2, max_starts=40,   # stopping rule of nrsfm.corrective.search_triplet
     lam=1e2,                 # penalty of nrsfm.corrective.penalized_gram
     gram="penalized",        # relaxation whose column blocks "literal" refines
     n_random=32, n_full=4, screen_frames=80, screen_iter=30,
@@ -505,14 +564,16 @@ _DEFAULTS = dict(
     max_iter=50, eps=1e-3,   # Weiszfeld
     average="l1",            # "l1" (Alg. 1) or "chordal" (L2, for the ablation)
     refit=False,             # project the average back onto one triplet (see below)
+    combine=None,            # "family": maximum-ratio combination of the triplet family
+    combine_iter=5,          # at most this many family <-> rotation alternations ...
+    combine_tol=1e-3,        # ... stopped when the median per-frame change (rad) is below
 )
 
 _STRATEGY_DEFAULTS = {
-    # chosen on the 8 MoCap sequences (benchmarks/rotation_study.py --e3d-repeats 4):
-    # bootstrap, single triplet and 90% windows tie on e3d (mean e3d / paper 0.987, 0.993,
-    # 1.002; stretch and dance move in opposite directions); 90% windows lower e_R on all
-    # four sequences with ground truth, so they are the default.
-    "organic": dict(subsets="windows", window=0.9, filter_against="average"),
+    # chosen by benchmarks/rotation_study.py and benchmarks/noise_study.py
+    # (docs/rotation_stage.md)
+    "organic": dict(subsets="windows", window=0.9, filter_against="average",
+                    combine="family"),
     "windows": dict(window=0.5, filter_against=None),
     "bootstrap": dict(subsets="bootstrap", window=0.5, filter_against="average"),
     "literal": dict(filter_against="reference", gram="nuclear"),
@@ -532,11 +593,13 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
     strategy : str
         One of :data:`STRATEGIES`:
 
-        * ``organic`` (default): the best triplet (penalised relaxation + refinement of
-          Dai's cost, :func:`nrsfm.corrective.corrective_triplets`) plus K - 1 triplets
-          refined on temporal windows of 90% of the frames; register (flip-aware Eq. 3),
-          filter at delta = 0.05 rad from the L1 average of the samples, per-frame L1
-          average (Alg. 1), depth signs by smoothness.
+        * ``organic`` (default): the best triplet (the search of
+          :func:`nrsfm.corrective.corrective_triplets`) plus K - 1 triplets refined on
+          temporal windows of 90% of the frames; register (flip-aware Eq. 3), filter at
+          delta = 0.05 rad from the L1 average of the samples, per-frame L1 average
+          (Alg. 1); then the K triplets of the family consistent with that average,
+          combined per frame by maximum-ratio weights (``combine="family"``); depth
+          signs by smoothness.
         * ``bmm``: the best triplet only (Dai et al.).
         * ``literal``: the K column triplets of the relaxed Gram matrix, each refined,
           registered to the lowest-cost one, filtered, L1-averaged.
@@ -554,7 +617,11 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
         ``|c_fk|`` in the average), ``window`` (fraction of F), ``subsets`` ("windows" |
         "bootstrap" | "random"), ``n_triplets`` (default K), ``average`` ("l1" |
         "chordal"), ``refit`` (replace the average by the rotations of the single triplet
-        that fits it best, :func:`triplet_from_rotations`), ``n_random``, ``n_full``,
+        that fits it best, :func:`triplet_from_rotations`), ``combine`` (None |
+        "family", :func:`combine_family`, alternated with :func:`triplet_family` at most
+        ``combine_iter`` times until the median per-frame change is below ``combine_tol``
+        rad), ``hits`` and ``max_starts`` (stopping rule
+        of the triplet search), ``n_random``, ``n_full``,
         ``screen_frames``, ``screen_iter``, ``sdp_solver``, ``refine``, ``max_iter``,
         ``eps``.
 
@@ -592,8 +659,10 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
                               n_full=max(p["n_full"], m if strategy == "multistart" else 0),
                               screen_frames=p["screen_frames"],
                               screen_iter=p["screen_iter"], sdp_solver=p["sdp_solver"],
-                              refine=p["refine"], lam=p["lam"], gram=p["gram"])
+                              refine=p["refine"], lam=p["lam"], gram=p["gram"],
+                              hits=p["hits"], max_starts=p["max_starts"])
     info.update(corrective_costs=cor.costs, corrective_starts=cor.info["starts"],
+                corrective_search=cor.info.get("search"),
                 sdp={k: cor.info[k] for k in ("penalized", "nuclear") if k in cor.info},
                 corrective_timings=cor.timings)
     G_best = cor.G[0]
@@ -683,6 +752,22 @@ def estimate_rotations(M_hat, K, strategy="organic", seed=0, progress=None, **op
         final = np.where(ok[:, None, None], R_fit, averaged)
         info.update(G_refit=G_fit, refit_cost=triplet_cost(G_fit, M))
         timings["refit"] = time.perf_counter() - t0
+    if p["combine"] == "family" and K > 1:
+        t0 = time.perf_counter()
+        sv = np.sum(M ** 2, axis=0)                        # M_hat = U sqrt(S): |col|^2 = s
+        steps = []
+        for _ in range(max(1, int(p["combine_iter"]))):   # family <-> rotations, alternated
+            G_fam, fam_eig = triplet_family(M, final, K)
+            new, fam_w = combine_family(M, G_fam, final, sv)
+            steps.append(float(np.median(rotation_angle(new, final))))
+            final = new
+            if steps[-1] < p["combine_tol"]:
+                break
+        info.update(G_family=G_fam, family_eigenvalues=fam_eig, family_weights=fam_w,
+                    combine_steps=np.array(steps))
+        timings["combine"] = time.perf_counter() - t0
+    elif p["combine"] not in (None, "family"):
+        raise ValueError(f"unknown combine {p['combine']!r}")
     rotations, flipped = resolve_depth_signs(final)
     say(f"rotations: {len(G)} triplet(s), {kept.sum()} of {kept.size} samples kept, "
         f"{int(flipped.sum())} frames' depth sign from smoothness")

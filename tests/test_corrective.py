@@ -115,3 +115,31 @@ def test_all_starts_reach_an_exact_triplet_noise_free(starts):
     M, _ = _M(2, F=40, P=21, seed=6)
     res = C.corrective_triplets(M, 2, starts=starts, seed=1)
     assert res.costs[0] < 1e-16
+
+
+def test_search_stops_after_two_hits_of_the_best_minimum():
+    M, _ = _M(3, noise=0.02, seed=7)
+    G, costs, info = C.search_triplet(M, 3, seed=0)
+    assert info["stopped"] == "hits" and info["hits"] >= 2
+    assert info["n_starts"] == len(info["history"]) <= 40
+    assert np.all(np.diff(costs) >= 0)
+    assert costs[0] <= min(c for _, c, _ in info["history"]) * (1 + 1e-5)
+
+
+def test_search_from_random_starts_only_finds_the_relaxations_minimum():
+    """The stopping rule, fed only seeded random starts, confirms the same minimum."""
+    M, _ = _M(2, noise=0.03, seed=8)
+    _, c_relaxed, _ = C.search_triplet(M, 2, seed=0)
+    G, c_random, info = C.search_triplet(M, 2, seed=3, lams=())
+    assert info["n_random"] == info["n_starts"] >= 2
+    assert info["miss_bound"] == pytest.approx(min(1.0, 3.0 / info["n_random"]))
+    assert c_random[0] == pytest.approx(c_relaxed[0], rel=1e-4)
+
+
+def test_search_is_deterministic_and_bounded():
+    M, _ = _M(2, noise=0.05, seed=9)
+    a = C.search_triplet(M, 2, seed=5, hits=50, max_starts=6)
+    b = C.search_triplet(M, 2, seed=5, hits=50, max_starts=6)
+    assert a[2]["stopped"] == "max_starts" and a[2]["n_starts"] == 6
+    np.testing.assert_array_equal(a[0], b[0])
+    assert a[2]["history"] == b[2]["history"]

@@ -7,7 +7,7 @@
 # 1. **Lifting** to $SO(3)$: scale the two rows to unit length, complete with
 #    $\mathbf r_3=\mathbf r_1\times\mathbf r_2$, project onto $SO(3)$ ("taking care of the
 #    determinant sign").
-# 2. **Sign and handedness** (METHOD.md, "Pitfall"): a frame with $c_{fk}<0$ gives
+# 2. **Sign and handedness** (a pitfall the paper does not mention): a frame with $c_{fk}<0$ gives
 #    $-\mathbf R_f$, whose lift is $\mathrm{diag}(-1,-1,1)\mathbf R_f$ (the same image with the
 #    depth reversed); and a triplet may come out mirrored (opposite handedness).
 # 3. **Registration**, **Eq. (3)**: the triplets live in different world frames; with the

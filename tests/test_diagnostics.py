@@ -1,0 +1,132 @@
+"""Diagnostics: input checks from the maths and the quality signals of a run."""
+
+import warnings
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+import data_tools
+import nrsfm
+from nrsfm import diagnostics as D
+from nrsfm.measurement import factorize
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    with threadpool_limits(limits=1):
+        yield
+
+
+def _planar(F=60, P=20, K=2, seed=0):
+    """A deforming planar object (z = 0 in every basis shape): rank(W) = 2K < 3K."""
+    seq = data_tools.make_synthetic(F=F, P=P, K=K, seed=seed)
+    B = seq.extra["basis"].copy()
+    B[:, 2] = 0.0
+    X = np.einsum("fk,kip->fip", seq.extra["coefficients"], B)
+    return (seq.rotations[:, :2] @ X).reshape(2 * F, P)
+
+
+def _run(W, K, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = nrsfm.reconstruct(W, K, **kw)
+    return res, [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+
+
+def test_three_K_above_centred_rank_is_value_error_naming_both():
+    W = np.random.default_rng(0).standard_normal((20, 3))      # K = 1, P = 3: rank <= 2
+    with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 2, below 3K = 3"):
+        nrsfm.reconstruct(W, 1)
+
+
+def test_planar_object_rank_deficient_warns_with_rank():
+    res, caught = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    assert len(caught) == 1
+    msg = str(caught[0].message)
+    assert "rank 4 < 3K = 6" in msg
+    assert res.diagnostics.signals["numerical_rank"] == 4
+    assert res.diagnostics.flagged
+
+
+def test_static_camera_warns():
+    seq = data_tools.make_synthetic(F=60, P=20, K=2, motion="static", seed=0)
+    res, caught = _run(seq.W, 2)
+    assert len(caught) == 1 and "static camera" in str(caught[0].message)
+    assert res.diagnostics.signals["camera_spread_deg"] < D.CAMERA_SPREAD_MIN_DEG
+
+
+def test_transposed_input_warns():
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, seed=1)     # W is 120 x 30
+    res, caught = _run(seq.W.T, 2, rotation_options=dict(max_starts=8))  # read as 15 x 120
+    assert len(caught) == 1
+    msg = str(caught[0].message)
+    assert "looks transposed" in msg and "W.T" in msg
+    assert res.diagnostics.signals["looks_transposed"]
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.03])
+def test_clean_and_mildly_noisy_inputs_do_not_warn(noise):
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=noise, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", nrsfm.NRSfMWarning)
+        res = nrsfm.reconstruct(seq.W, 2)
+    d = res.diagnostics
+    assert not d.flagged and d.signals["triplet_hits"] >= 2
+    assert d.signals["triplet_cost_ratio"] < D.COST_RATIO_MAX
+    for name in ("numerical_rank", "rank_gap", "condition", "triplet_cost_ratio",
+                 "kept_fraction", "smoothness_sign_fraction", "camera_spread_deg"):
+        assert name in d.signals and name in d.thresholds
+
+
+def test_default_demo_sequence_does_not_warn():
+    seq = data_tools.default_sequence()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", nrsfm.NRSfMWarning)
+        res = nrsfm.reconstruct(seq.W, seq.K)
+    assert res.diagnostics.flags == [] and res.diagnostics.notes == []
+
+
+def test_predicted_triplet_cost_matches_noise():
+    """Dai's cost at the found triplet is the size the noise model predicts (within 2x)."""
+    seq = data_tools.make_synthetic(F=120, P=40, K=2, noise=0.03, seed=4)
+    res = nrsfm.reconstruct(seq.W, 2, method="bmm")
+    s = res.diagnostics.signals
+    assert 0.5 < s["triplet_cost"] / s["triplet_cost_predicted"] < 2.0
+    assert 0.5 < s["noise_level"] / 0.03 < 2.0
+
+
+def test_bad_triplet_is_flagged():
+    """A triplet far from the best minimum: the cost ratio flags it."""
+    seq = data_tools.make_synthetic(F=80, P=30, K=2, noise=0.02, seed=5)
+    f = factorize(seq.W, 2)
+    good = nrsfm.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
+    bad = nrsfm.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
+    G = np.random.default_rng(0).standard_normal((6, 3))
+    bad.info["corrective_costs"] = np.array([nrsfm.corrective.triplet_cost(G, f.M_hat)])
+    bad.G = G[None]
+    d_good = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, good)
+    d_bad = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, bad)
+    assert d_good.signals["triplet_cost_ratio"] < D.COST_RATIO_MAX
+    assert d_bad.signals["triplet_cost_ratio"] > D.COST_RATIO_MAX
+    assert any("Dai's cost" in flag for flag in d_bad.flags)
+
+
+def test_warning_class_and_report(tmp_path, capsys):
+    assert issubclass(nrsfm.NRSfMWarning, UserWarning)
+    res, _ = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    text = res.diagnostics.summary()
+    assert "WARNING" in text and "numerical_rank = 4" in text
+    pytest.importorskip("rerun")
+    from nrsfm.recording import recording_content
+
+    assert "## Diagnostics" in recording_content(res).report
+    path = tmp_path / "planar.npz"
+    np.savez(path, W=_planar(), K=2)
+    from nrsfm.cli import main
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", nrsfm.NRSfMWarning)   # the CLI prints, not warns
+        main(["run", str(path), "-o", str(tmp_path / "out.npz"), "--quiet"])
+    out = capsys.readouterr().out
+    assert "WARNING: W is numerically rank-deficient: rank 4 < 3K = 6" in out
