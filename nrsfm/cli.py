@@ -27,6 +27,7 @@ from . import __version__
 from ._validation import check_K, check_measurements, check_rotations, check_shapes
 from .io import atomic_output, check_output_path, save_npz
 from .pipeline import METHODS, reconstruct
+from .shape import SHAPE_SOLVERS
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
@@ -77,6 +78,9 @@ def _seed(text):
 def _add_common(p):
     p.add_argument("--method", choices=sorted(METHODS), default="organic",
                    help="pipeline to run (default: organic)")
+    p.add_argument("--shape-solver", choices=SHAPE_SOLVERS, default="bilinear",
+                   help="shape-stage solver (default: bilinear; admm: the paper's "
+                        "continuation ADMM; closed_form: exact rank-K, no prior)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed (default: 0)")
     p.add_argument("--rrd", metavar="PATH", nargs="?", const="",
                    help="also write a Rerun recording (.rrd); without PATH: see below")
@@ -137,6 +141,7 @@ def cmd_demo(args):
     print(f"built-in input: {seq.name}, F={seq.n_frames} frames, P={seq.n_points} points, "
           f"K={seq.K}, smooth camera, no noise")
     result = reconstruct(seq.W, seq.K, method=args.method, seed=args.seed,
+                         shape_solver=args.shape_solver,
                          progress=not args.quiet)
     _report(result, seq)
     if rrd:
@@ -236,7 +241,7 @@ def _output_arrays(result, K, errs):
                   version=np.array(__version__))
     if result.shape_stage is not None:
         for key, val in result.shape_stage.history.items():
-            arrays[f"admm_{key}"] = np.asarray(val)
+            arrays[f"shape_{key}"] = np.asarray(val)
     if result.rotation_stage is not None:
         rs = result.rotation_stage
         arrays.update(G=rs.G, per_triplet_rotations=rs.per_triplet, kept=rs.kept)
@@ -286,6 +291,7 @@ def cmd_run(args):
         raise UsageError(f"--rrd {rrd} would overwrite the input or the output")
 
     result = reconstruct(W, K, method=args.method, seed=args.seed,
+                         shape_solver=args.shape_solver,
                          rotations=rotations if args.given_rotations else None,
                          progress=not args.quiet)
     seq = None
@@ -307,7 +313,7 @@ def add_run_command(sub):
     p = sub.add_parser(
         "run", help="reconstruct W from an .npz file and write the result",
         epilog="The output .npz holds rotations (F, 3, 3), shapes (F, 3, P), X_init, W, "
-               "row_means, scale, K, method, version, admm_* (shape-stage history), G, "
+               "row_means, scale, K, method, version, shape_* (shape-stage history), G, "
                "per_triplet_rotations, kept (rotation stage) and e3d, e3d_akhter, e_R "
                "when the input has ground truth; see the README. --rrd without PATH "
                "writes out/OUTPUT_NAME.rrd under the current folder (or $NRSFM_OUT).")
@@ -342,6 +348,7 @@ def cmd_mocap(args):
         raise UsageError(f"--given-rotations: {args.name} has no ground-truth rotations "
                          "(its rigid motion is inside the shapes)")
     result = reconstruct(seq.W, K, method=args.method, seed=args.seed,
+                         shape_solver=args.shape_solver,
                          rotations=seq.rotations if args.given_rotations else None,
                          progress=not args.quiet)
     _report(result, seq)

@@ -164,7 +164,7 @@ def _progress_printer(progress):
 
 
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, shape_solver="admm", progress=False, blas_thread_limit=1):
+                shape_options=None, shape_solver="bilinear", progress=False, blas_thread_limit=1):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -187,10 +187,10 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     rotation_options, shape_options : dict, optional
         Passed to :func:`nrsfm.rotations.estimate_rotations` and to the shape solver.
     shape_solver : {"admm", "bilinear", "closed_form"}
-        ``admm`` (default): the paper's continuation ADMM,
-        :func:`nrsfm.shape.optimize_shapes`; ``bilinear``: the factored weighted nuclear
-        norm minimised to a stationary point,
-        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear`; ``closed_form``: the exact
+        ``bilinear`` (default): the factored weighted nuclear norm minimised to a
+        stationary point,
+        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear`; ``admm``: the paper's
+        continuation ADMM, :func:`nrsfm.shape.optimize_shapes`; ``closed_form``: the exact
         rank-K solution, :func:`nrsfm.shape_bilinear.closed_form_result` (no prior). See
         ``docs/shape_stage.md`` for the measurements behind the default.
     progress : bool or callable

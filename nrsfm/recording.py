@@ -87,7 +87,7 @@ GT_COLOR = (70, 130, 255, 255)
 AXIS_COLORS = np.array([(230, 60, 60, 255), (60, 200, 60, 255), (70, 110, 255, 255)],
                        dtype=np.uint8)
 DROPPED_COLOR = (140, 140, 140, 110)
-ADMM_KEYS = ("cost", "data_term", "residual", "rho")
+ADMM_KEYS = ("cost", "data_term", "residual", "rho", "grad_norm")  # admm | bilinear
 
 
 # --------------------------------------------------------------------------- computation
@@ -281,8 +281,13 @@ def _report(result, sequence, c):
               f"- shape stage: {'ran' if result.shape_stage is not None else 'skipped (pseudo-inverse + rank-K truncation)'}"]
     ss = result.shape_stage
     if ss is not None:
-        lines.append(f"- ADMM: {_stage_value(ss, 'n_iter')} iterations, "
+        solver = result.params.get("shape_solver", "admm")
+        lines.append(f"- shape solver {solver}: {_stage_value(ss, 'n_iter')} iterations, "
                      f"converged = {_stage_value(ss, 'converged')}")
+        if _stage_value(ss, "grad_norm") is not None:
+            lines.append(f"- shape objective {_stage_value(ss, 'objective'):.6g}, relative "
+                         f"gradient norm {_stage_value(ss, 'grad_norm'):.3g} (first-order "
+                         "optimality)")
     rs = result.rotation_stage
     if c.triplet_kept is not None:
         lines.append(f"- rotation samples kept by the filter: {int(c.triplet_kept.sum())} of "
@@ -314,7 +319,7 @@ def _log10(v):
 
 
 #: ADMM quantities drawn on a log10 axis (they span many orders of magnitude).
-ADMM_LOG = ("data_term", "residual", "rho")
+ADMM_LOG = ("data_term", "residual", "rho", "grad_norm")
 
 
 def _admm_label(name):
@@ -371,7 +376,7 @@ def make_blueprint(content=None):
     no_legend = rrb.PlotLegend(visible=False)
     admm_names = (list(content.admm) if content is not None else list(ADMM_KEYS))
     admm = [rrb.BarChartView(origin=f"/admm_history/{n}",
-                             name=("ADMM cost" if n == "cost"
+                             name=("shape cost" if n == "cost"
                                    else _admm_label(n).replace("_", " ")),
                              plot_legend=no_legend)
             for n in admm_names if n in ADMM_KEYS]
@@ -400,7 +405,7 @@ def make_blueprint(content=None):
     report = rrb.TextDocumentView(origin="/run/report", name="report")
     right = []
     if admm:
-        right.append(rrb.Grid(*admm, grid_columns=2, name="ADMM"))
+        right.append(rrb.Grid(*admm, grid_columns=2, name="shape stage"))
     if series:
         right.append(rrb.Tabs(*series, name="per frame"))
     right.append(rrb.Tabs(*spectra, report, name="spectra and report"))

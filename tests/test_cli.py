@@ -101,7 +101,7 @@ def test_run_default_output_and_full_keys(tmp_path, good):
     assert main(["run", str(good), "--quiet"]) == 0
     with np.load(tmp_path / "seq_nrsfm.npz") as z:
         keys = set(z.files)
-    assert {"admm_cost", "admm_data_term", "admm_residual", "admm_rho", "G",
+    assert {"shape_cost", "shape_data_term", "shape_grad_norm", "G",
             "per_triplet_rotations", "kept"} <= keys
 
 

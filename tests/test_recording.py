@@ -205,7 +205,8 @@ def test_frame_mismatch_raises(seq, pinv_result):
 
 def test_real_shape_stage(tmp_path, seq):
     """Rotations given: the real ADMM shape stage's history ends up on its timeline."""
-    res = nrsfm.reconstruct(seq.W, seq.K, method="organic", rotations=seq.rotations)
+    res = nrsfm.reconstruct(seq.W, seq.K, method="organic", rotations=seq.rotations,
+                            shape_solver="admm")
     assert res.rotation_stage is None and res.shape_stage is not None
     data = read_rrd(save_recording(res, tmp_path / "shape.rrd", seq))
     for key in ("cost", "data_term", "residual", "rho"):
