@@ -10,7 +10,8 @@ texture with ``cv2.remap``. A tracked point is located on the mesh in its first 
 (triangle and barycentric coordinates); its true 3D position in every frame is then the
 same barycentric combination of the moved vertices, exactly what was rendered.
 
-Surfaces: ``"sheet"``, a waving flag (a travelling wave, rank 2 on top of the flat sheet),
+Surfaces: ``"sheet"``, a bent waving flag (a travelling wave, rank 2, and a slow twist on top
+of the rest shape),
 and ``"face"``, a face-like relief (dome, nose, brows, chin) that breathes (scaled depth)
 and opens its mouth.
 """
@@ -79,8 +80,11 @@ def _surface(kind, uv, F, rng):
     if kind == "sheet":
         # Travelling wave sin(k x - w t) = sin(k x) cos(w t) - cos(k x) sin(w t): rank 2,
         # its amplitude growing away from the left edge (where a flag is held).
-        k, amp = 1.6 * np.pi, 0.22 * (0.3 + 0.7 * u)
-        B = np.stack([np.stack([x, y, zero]),
+        # The rest shape is bent (a flat sheet would make the rigid factorisation
+        # degenerate: its mean shape has rank 2).
+        k, amp = 1.6 * np.pi, 0.15 * (0.3 + 0.7 * u)
+        bend = 0.35 * (1 - x ** 2) + 0.15 * (y / 0.75) ** 2
+        B = np.stack([np.stack([x, y, bend]),
                       np.stack([zero, zero, amp * np.sin(k * x)]),
                       np.stack([zero, zero, amp * np.cos(k * x)]),
                       np.stack([zero, zero, 0.12 * np.sin(np.pi * v) * x])])

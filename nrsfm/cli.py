@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .pipeline import METHODS, reconstruct
+from .video_cli import add_video_commands
 
 
 def _add_common(p):
@@ -149,6 +150,7 @@ def build_parser():
                    help="use ground-truth rotations (shape stage only)")
     _add_common(p)
     p.set_defaults(func=cmd_mocap)
+    add_video_commands(sub)
     return parser
 
 
