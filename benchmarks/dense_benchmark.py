@@ -99,6 +99,8 @@ def dense_tracks(P, F, seed):
 
 
 def scale_table(args):
+    import rerun  # noqa: F401  (imported here so that its ~3 s import is not timed below)
+
     from nrsfm.measurement import centre_rows, factorize
     from nrsfm.recording_video import save_video_recording
     from nrsfm.rotations import estimate_rotations

@@ -211,7 +211,7 @@ class SyntheticVideo:
 
         Parameters
         ----------
-        tracks : (F, 2, P) ndarray
+        tracks : (F, 2, P) ndarray or data_tools.video.Tracks
             Pixel tracks (NaN where lost); ``tracks[0]`` must be finite.
 
         Returns
@@ -221,7 +221,7 @@ class SyntheticVideo:
             camera frame (``R_f X``), ``pixels`` (F, 2, P) true image positions, ``valid``
             (P,) bool: the track started on the surface (not the background).
         """
-        tracks = np.asarray(tracks, float)
+        tracks = np.asarray(getattr(tracks, "tracks", tracks), float)
         tri, bary = self.locate(tracks[0].T)
         world = self.world_points(tri, bary)
         return dict(world=world, camera=self.rotations @ world, pixels=self.project(world),
@@ -230,13 +230,15 @@ class SyntheticVideo:
     def sequence(self, tracks, name=None):
         """A :class:`Sequence` of the valid tracks' pixel coordinates with 3D ground truth.
 
+        ``tracks``: (F, 2, P) array or ``Tracks``, as for :meth:`ground_truth`.
+
         ``W`` holds the row-centred tracks of the points with ground truth (NaN kept);
         ``shapes`` the true camera-frame 3D, scaled to pixels and centred per frame.
         """
         gt = self.ground_truth(tracks)
         ok = gt["valid"]
         F = self.n_frames
-        T = np.asarray(tracks, float)[:, :, ok]
+        T = np.asarray(getattr(tracks, "tracks", tracks), float)[:, :, ok]
         W = T.reshape(2 * F, -1)
         W = W - np.nanmean(W, axis=1, keepdims=True)
         cam = self.pixel_scale * gt["camera"][:, :, ok]
