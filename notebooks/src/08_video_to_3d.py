@@ -118,11 +118,20 @@ for name, tracks in (("sparse", sparse), ("dense", dense)):
           f"missing data passed: {vr.missing_data}; e3d = {e:.4f} ({dt:.1f} s)")
 
 # %% [markdown]
-# The paper's dense experiments (Garg et al.'s synthetic faces, $K=1$) report e3d 0.03-0.06;
-# this surface deforms more (breathing depth and a jaw) and is seen over 40 frames only.
+# The paper's dense experiments (Garg et al.'s synthetic faces, $K=1$) report e3d 0.03-0.06.
+# Is the tracker or the method the limit here? The exact projections of the surface points
+# under the mesh vertices, reconstructed the same way, give e3d 0.097 on this 40-frame
+# video (0.07 on 100 frames, `benchmarks/dense_benchmark.py`): at $K=1$ the error is the
+# method's on this deformation, not the tracker's.
 
 # %%
-assert results["dense"][2] < 0.1       # measured about 0.07 here
+assert results["dense"][2] < 0.12      # measured 0.099 (dense) and 0.118 (sparse)
+gt = video.ground_truth(video.project(video.vertices))
+seq_exact = video.sequence(gt["pixels"][:, :, gt["valid"]])
+vr_exact = reconstruct_tracks(seq_exact.W, 1)
+e_exact = vr_exact.result.errors(seq_exact.shapes)["e3d"]
+print(f"exact projections of {seq_exact.n_points} surface points: e3d = {e_exact:.4f}")
+assert abs(e_exact - results["dense"][2]) < 0.03
 assert results["sparse"][2] < 0.15
 
 # %% [markdown]
