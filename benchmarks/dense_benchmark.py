@@ -158,8 +158,9 @@ def scale_table(args):
                     colors=np.full((P, 3), 200, np.uint8), method="dense",
                     image_size=v.frames.shape[1:3])
     with tempfile.TemporaryDirectory() as tmp:
-        info, t, m = _measure(lambda: save_video_recording(Path(tmp) / "dense.rrd", v.frames,
-                                                           tracks, res, shapes_gt=cam))
+        out = Path(args.rrd) if args.rrd else Path(tmp) / "dense.rrd"
+        info, t, m = _measure(lambda: save_video_recording(out, v.frames, tracks, res,
+                                                           shapes_gt=cam))
     rows.append((f"recording ({info['points_3d']} of {P} points in 3D, "
                  f"{info['points_2d']} tracks drawn, {F} JPEG frames): "
                  f"{info['bytes'] / 1e6:.1f} MB", t, m))
@@ -188,6 +189,7 @@ def main(argv=None):
     p.add_argument("--skip-scale", action="store_true")
     p.add_argument("--skip-shape", action="store_true",
                    help="leave out the shape stage in table 2")
+    p.add_argument("--rrd", help="keep table 2's recording at this path")
     args = p.parse_args(argv)
     print(f"threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; timings taken on "
           f"a shared 2-core machine")
