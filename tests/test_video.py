@@ -247,3 +247,29 @@ def test_video_recording_is_small_and_decimated(tmp_path, video):
     assert info["points_3d"] == 200 and info["points_2d"] == 300
     assert 0 < info["bytes"] < 2_000_000
     assert len(decimate(10, 3)) == 3 and list(decimate(3, 10)) == [0, 1, 2]
+
+
+def test_help_lists_video_commands(capsys):
+    from nrsfm.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "track" in out and "video" in out
+
+
+def test_wide_factorisation_matches_the_svd():
+    """Dense W (P >> 2F) is factorised through the 2F x 2F Gram matrix."""
+    from nrsfm.measurement import factorize
+
+    rng = np.random.default_rng(0)
+    W = rng.standard_normal((40, 6)) @ rng.standard_normal((6, 2000))
+    W += 1e-3 * rng.standard_normal(W.shape)
+    f = factorize(W, 2)
+    U, s, Vt = np.linalg.svd(W, full_matrices=False)
+    np.testing.assert_allclose(f.M_hat @ f.B_hat, (U[:, :6] * s[:6]) @ Vt[:6], atol=1e-9)
+    np.testing.assert_allclose(f.singular_values[:6], s[:6], rtol=1e-9)
+    # the Gram matrix squares the spectrum: small singular values are accurate relative to
+    # s_1, not to themselves
+    np.testing.assert_allclose(f.singular_values, s, atol=1e-9 * s[0])
+    assert f.singular_values.shape == s.shape
