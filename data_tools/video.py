@@ -240,11 +240,42 @@ def _finish(history, fb, lost_at, frames0, pts0, method, size, params, keep_raw)
                   raw=raw.astype(np.float32) if keep_raw else None)
 
 
+# --------------------------------------------------------------------------- neighbours
+
+def _neighbours(pts0, k):
+    """(P, k) indices of each point's k nearest other points in the first frame."""
+    from scipy.spatial import cKDTree
+
+    k = min(k, len(pts0) - 1)
+    if k < 3:
+        return None
+    _, idx = cKDTree(pts0).query(pts0, k + 1)
+    return idx[:, 1:]
+
+
+def _neighbour_residual(pts0, cur, alive, nbrs):
+    """Distance of each point in ``cur`` from the position predicted by the affine map
+    (first frame -> now) fitted to its live neighbours; NaN with fewer than 3 of them."""
+    P, k = nbrs.shape
+    a = alive[nbrs]                                              # (P, k)
+    X = np.concatenate([pts0[nbrs] - pts0[:, None], np.ones((P, k, 1))], axis=2)  # (P,k,3)
+    X = X * a[..., None]
+    Y = cur[nbrs] * a[..., None]                                 # (P, k, 2)
+    A = X.transpose(0, 2, 1) @ X + 1e-6 * np.eye(3)
+    B = X.transpose(0, 2, 1) @ Y
+    coef = np.linalg.solve(A, B)                                 # (P, 3, 2)
+    pred = coef[:, 2, :]                                         # affine map at offset 0
+    with np.errstate(invalid="ignore"):
+        r = np.linalg.norm(cur - pred, axis=1)
+    r[a.sum(axis=1) < 3] = np.nan
+    return r
+
+
 # --------------------------------------------------------------------------- sparse
 
 def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=15,
-                 levels=3, fb_threshold=1.0, max_residual=25.0, mask=None, min_points=8,
-                 keep_raw=False):
+                 levels=3, fb_threshold=1.0, max_residual=25.0, neighbour_px=2.0,
+                 n_neighbours=8, mask=None, min_points=8, keep_raw=False):
     """Corners of the first frame tracked by pyramidal Lucas-Kanade with a forward-backward
     check.
 
@@ -265,6 +296,11 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
         consistently forwards and backwards, but it no longer looks the same. On the
         synthetic videos the residual of good steps stays below 7-15 grey levels; a patch
         replaced by another texture gives about 40.
+    neighbour_px, n_neighbours : float, int
+        Motion consistency: a track farther than ``neighbour_px`` pixels from where the
+        affine motion (first frame -> now) of its ``n_neighbours`` nearest live neighbours
+        puts it is lost (a slow drift or a jump onto another feature passes the other two
+        checks). ``neighbour_px=None`` turns the check off.
     mask : (H, W) bool array, optional
         Where to look for corners in the first frame.
     min_points : int
@@ -302,6 +338,7 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
                          f"(need at least {min_points})")
     pts = pts.reshape(-1, 2).astype(np.float32)
     pts0 = pts.copy()
+    nbrs = None if neighbour_px is None else _neighbours(pts0, n_neighbours)
     P = len(pts)
     lk = dict(winSize=(window, window), maxLevel=levels,
               criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
@@ -329,12 +366,18 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
             newly = active[idx] & bad
             lost_at[idx[newly]] = f
             active[idx[newly]] = False
+        if nbrs is not None and active.any():
+            r = _neighbour_residual(pts0, nxt, active, nbrs)
+            newly = active & (r > neighbour_px)
+            lost_at[newly] = f
+            active[newly] = False
         history.append(nxt.copy())
         fb.append(err)
         pts, prev = nxt, cur
     params = dict(max_points=max_points, quality=quality, min_distance=min_distance,
                   window=window, levels=levels, fb_threshold=fb_threshold,
-                  max_residual=max_residual)
+                  max_residual=max_residual, neighbour_px=neighbour_px,
+                  n_neighbours=n_neighbours)
     return _finish(history, fb, lost_at, frames[0], pts0, "sparse", (H, W), params, keep_raw)
 
 
@@ -368,8 +411,9 @@ def _flow_engine(name):
     raise ValueError(f"unknown flow {name!r}; expected 'dis' or 'farneback'")
 
 
-def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0, flow="dis",
-                erode=7, window=15, min_points=8, max_points=None, keep_raw=False):
+def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
+                neighbour_px=2.0, n_neighbours=8, flow="dis", erode=7, window=15,
+                min_points=8, max_points=None, keep_raw=False):
     """Grid points of the first frame carried through the video by chained optical flow,
     with a forward-backward check at every step.
 
@@ -389,6 +433,8 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0, 
         A step whose photometric residual (mean absolute grey-level difference between the
         previous frame and the flow-warped current frame over a ``window`` x ``window`` box)
         exceeds this loses the track too (occlusions can pass the forward-backward check).
+    neighbour_px, n_neighbours : float, int
+        Motion consistency with the nearest grid neighbours, as in :func:`track_sparse`.
     flow : {"dis", "farneback"}
         OpenCV optical flow (DIS, medium preset, or Farneback).
     max_points : int, optional
@@ -434,6 +480,7 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0, 
     if max_points is not None and len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, int(max_points)).astype(int)]
     pts0 = pts.copy()
+    nbrs = None if neighbour_px is None else _neighbours(pts0, n_neighbours)
     P = len(pts)
     history, fb = [pts.copy()], [np.zeros(P)]
     lost_at = np.full(P, len(frames), int)
@@ -463,10 +510,16 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0, 
             newly = active[idx] & bad
             lost_at[idx[newly]] = f
             active[idx[newly]] = False
+        if nbrs is not None and active.any():
+            r = _neighbour_residual(pts0, nxt, active, nbrs)
+            newly = active & (r > neighbour_px)
+            lost_at[newly] = f
+            active[newly] = False
         history.append(nxt.copy())
         fb.append(err)
         pts, prev = nxt, cur
     params = dict(step=step, fb_threshold=fb_threshold, max_residual=max_residual,
+                  neighbour_px=neighbour_px, n_neighbours=n_neighbours,
                   window=window, flow=flow, erode=erode,
                   max_points=max_points)
     return _finish(history, fb, lost_at, frames[0], pts0, "dense", (H, W), params, keep_raw)
