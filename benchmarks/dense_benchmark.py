@@ -126,7 +126,9 @@ def scale_table(args):
     s = normalization_scale(Wc)
     Wn = Wc / s
     fact, t, m = _measure(lambda: factorize(Wn, 1))
-    rows.append(("factorisation: numpy thin SVD of 2F x P (+ residual)", t, m))
+    rows.append(("factorisation: nrsfm.measurement.factorize (+ residual)", t, m))
+    _, t, m = _measure(lambda: np.linalg.svd(Wn, full_matrices=False))
+    rows.append(("  for comparison: numpy thin SVD of the 2F x P W", t, m))
 
     def gram_svd():
         G = Wn @ Wn.T                                            # 2F x 2F

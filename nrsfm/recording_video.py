@@ -151,26 +151,21 @@ def save_video_recording(path, frames, tracks, result=None, used=None, shapes_gt
         n3 = 0
         errs = {}
         if result is not None:
-            X = np.asarray(result.shapes, float)
+            X = np.asarray(result.shapes)
             sel3 = decimate(X.shape[2], max_points_3d)
             n3 = len(sel3)
             if shapes_gt is not None:
-                from .metrics import e3d, similarity_align
-
-                G = np.asarray(shapes_gt, float)
-                G = G - G.mean(axis=2, keepdims=True)
-                per = e3d(X, G, per_frame=True)
+                G = np.asarray(shapes_gt)
+                per, X_disp, G_disp = _aligned(X, G, sel3)
                 errs["e3d"] = float(per.mean())
                 _scalars(rec, rr, "/errors/e3d", per, fr)
-                X_disp = similarity_align(X, G)
-                _points_columns(rec, rr, "/world/ground_truth",
-                                G[:, :, sel3].transpose(0, 2, 1).astype(np.float32), fr, 3)
+                _points_columns(rec, rr, "/world/ground_truth", G_disp, fr, 3)
                 rec.log("/world/ground_truth",
                         rr.Points3D.from_fields(colors=[GT_COLOR], radii=[-1.5]), static=True)
             else:
-                X_disp = X - X.mean(axis=2, keepdims=True)
-            _points_columns(rec, rr, "/world/estimate",
-                            X_disp[:, :, sel3].transpose(0, 2, 1).astype(np.float32), fr, 3)
+                X_disp = X[:, :, sel3] - X.mean(axis=2, keepdims=True)
+                X_disp = X_disp.transpose(0, 2, 1).astype(np.float32)
+            _points_columns(rec, rr, "/world/estimate", X_disp, fr, 3)
             col = tracks.colors[np.flatnonzero(used)][sel3]
             rec.log("/world/estimate", rr.Points3D.from_fields(colors=col, radii=[-2.0]),
                     static=True)
@@ -192,6 +187,27 @@ def save_video_recording(path, frames, tracks, result=None, used=None, shapes_gt
         rec.disconnect()
     return dict(path=path, bytes=path.stat().st_size, seconds=time.perf_counter() - t0,
                 points_3d=n3, points_2d=len(sel))
+
+
+def _aligned(X, G, sel):
+    """Per frame (memory O(P)): e3d of X against G (the metric's similarity Procrustes,
+    reflection allowed, as :func:`nrsfm.metrics.e3d`), and the display subset ``sel`` of the
+    aligned estimate and of the centred ground truth, (F, n, 3) float32 each."""
+    F = X.shape[0]
+    per = np.empty(F)
+    Xd = np.empty((F, len(sel), 3), np.float32)
+    Gd = np.empty((F, len(sel), 3), np.float32)
+    for f in range(F):
+        A = X[f] - X[f].mean(axis=1, keepdims=True)
+        B = G[f] - G[f].mean(axis=1, keepdims=True)
+        U, sig, Vt = np.linalg.svd(B @ A.T)
+        nA = float(np.sum(A * A))
+        c = sig.sum() / nA if nA > 0 else 0.0
+        Q = c * (U @ Vt)
+        per[f] = np.linalg.norm(B - Q @ A) / np.linalg.norm(B)
+        Xd[f] = (Q @ A[:, sel]).T
+        Gd[f] = B[:, sel].T
+    return per, Xd, Gd
 
 
 def _scalars(rec, rr, path, values, frames):
