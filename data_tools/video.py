@@ -403,12 +403,15 @@ def _sample(field_, pts):
 def _flow_engine(name):
     import cv2
 
-    if name == "dis":
+    if name in ("dis", "dis-fast"):
         dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        if name == "dis":            # refine down to full resolution, denser patches
+            dis.setFinestScale(0)
+            dis.setPatchStride(2)
         return lambda a, b: dis.calc(a, b, None)
     if name == "farneback":
         return lambda a, b: cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 4, 21, 5, 7, 1.5, 0)
-    raise ValueError(f"unknown flow {name!r}; expected 'dis' or 'farneback'")
+    raise ValueError(f"unknown flow {name!r}; expected 'dis', 'dis-fast' or 'farneback'")
 
 
 def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
@@ -435,8 +438,11 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
         exceeds this loses the track too (occlusions can pass the forward-backward check).
     neighbour_px, n_neighbours : float, int
         Motion consistency with the nearest grid neighbours, as in :func:`track_sparse`.
-    flow : {"dis", "farneback"}
-        OpenCV optical flow (DIS, medium preset, or Farneback).
+    flow : {"dis", "dis-fast", "farneback"}
+        OpenCV optical flow: DIS (medium preset refined down to full resolution, patch
+        stride 2), ``dis-fast`` (DIS medium preset as is: about 4 x faster, but on notebook
+        08's video its chained tracks drift beyond 3 px 3.6 x as often: 198 against 55 of
+        1,622) or Farneback (629 of 1,622).
     max_points : int, optional
         Keep at most this many grid points (evenly subsampled).
     keep_raw : bool
