@@ -5,7 +5,7 @@ Entity paths (timeline ``frame``):
 * ``/video/frame``: the frame, JPEG-encoded (downscaled to at most ``max_width`` pixels).
 * ``/video/tracks``: Points2D, tracks observed in this frame (a decimated subset for dense
   input), green where the reconstruction used the track, yellow where it did not.
-* ``/video/lost``: Points2D, red crosses at the last position of every (shown) track lost
+* ``/video/lost``: Points2D, red dots (larger) at the last position of every (shown) track lost
   at or before this frame.
 * ``/world/estimate``: Points3D, the reconstructed shape (decimated), coloured from the
   video; similarity-aligned per frame onto the ground truth when one is given (as ``e3d``).

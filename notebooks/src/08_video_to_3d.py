@@ -140,7 +140,7 @@ assert results["sparse"][2] < 0.15
 # ## Recording
 #
 # The frames (JPEG) with the tracks (green: used by the reconstruction, yellow: not used,
-# red crosses: where lost tracks were last seen), beside the reconstructed 3D points coloured
+# red dots: where lost tracks were last seen), beside the reconstructed 3D points coloured
 # from the video and the ground truth (blue), per-frame e3d and the number of live tracks.
 # Dense clouds are decimated (`max_points_3d`).
 
