@@ -28,6 +28,7 @@ from ._validation import check_K, check_measurements, check_rotations, check_sha
 from .io import atomic_output, check_output_path, save_npz
 from .pipeline import METHODS, reconstruct
 from .shape import SHAPE_SOLVERS
+from .video_cli import add_video_commands
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
@@ -374,7 +375,7 @@ def add_mocap_command(sub):
 
 #: Subcommand registrations, in the order ``nrsfm --help`` lists them. Other modules add
 #: theirs with one line here: ``COMMANDS.append(add_NAME_command)``.
-COMMANDS = [add_demo_command, add_run_command, add_mocap_command]
+COMMANDS = [add_demo_command, add_run_command, add_mocap_command, add_video_commands]
 
 
 def build_parser():

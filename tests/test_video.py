@@ -1,0 +1,279 @@
+"""Video to 3D: synthetic video ground truth, tracking with the forward-backward check,
+video input and its errors, the ``track`` / ``video`` commands, the video recording."""
+
+import numpy as np
+import pytest
+
+cv2 = pytest.importorskip("cv2")
+
+from data_tools.synthetic_video import make_video, tracking_errors  # noqa: E402
+from data_tools.video import load_frames, track_dense, track_sparse  # noqa: E402
+from nrsfm.cli import build_parser  # noqa: E402
+from nrsfm.video_cli import reconstruct_tracks  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def video():
+    return make_video("face", n_frames=12, size=(160, 200), grid=21, seed=3)
+
+
+def _noise_texture(shape, seed):
+    rng = np.random.default_rng(seed)
+    small = rng.random((shape[0] // 4, shape[1] // 4)).astype(np.float32)
+    return (cv2.resize(small, shape[::-1], interpolation=cv2.INTER_CUBIC).clip(0, 1)
+            * 255).astype(np.uint8)
+
+
+def _shifted_frames(n=8, occlude_at=None):
+    """A noise texture translated by (1.5, 0.5) px per frame; optionally, from frame
+    ``occlude_at`` on, the square [40, 80) x [40, 80) shows a different texture."""
+    tex = _noise_texture((200, 240), 0)
+    other = _noise_texture((200, 240), 1)
+    frames = []
+    for f in range(n):
+        M = np.float32([[1, 0, 1.5 * f], [0, 1, 0.5 * f]])
+        img = cv2.warpAffine(tex, M, (240, 200), flags=cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_REFLECT)
+        if occlude_at is not None and f >= occlude_at:
+            img[40:80, 40:80] = other[40:80, 40:80]
+        frames.append(img)
+    return frames
+
+
+def _in_square(p):
+    return (p[0] > 30) & (p[0] < 90) & (p[1] > 30) & (p[1] < 90)
+
+
+# --------------------------------------------------------------------------- generator
+
+def test_synthetic_video_is_deterministic_and_ground_truth_is_exact(video):
+    again = make_video("face", n_frames=12, size=(160, 200), grid=21, seed=3)
+    np.testing.assert_array_equal(video.frames, again.frames)
+    assert video.frames.shape == (12, 160, 200, 3)
+    assert (video.id0 > 0).mean() > 0.2
+    # mesh vertices seen in frame 0 are located on the mesh and map back to themselves in
+    # every frame (those outside the oval outline or hidden behind the relief do not)
+    pix = video.project(video.vertices)                   # (F, 2, V)
+    tri, bary = video.locate(pix[0].T)
+    ok = tri >= 0
+    assert ok.mean() > 0.5
+    X = video.world_points(tri, bary)
+    exact = np.all(np.abs(X - video.vertices) < 1e-9, axis=(0, 1))
+    assert exact[ok].mean() > 0.9
+    assert np.isnan(X[:, :, ~ok]).all()
+    with pytest.raises(ValueError, match="surface"):
+        make_video("cube")
+    with pytest.raises(ValueError, match="n_frames"):
+        make_video("sheet", n_frames=1)
+
+
+def test_sparse_tracks_follow_the_surface(video):
+    tr = track_sparse(video.frames, keep_raw=True)
+    assert tr.tracks.shape == (12, 2, tr.n_points) and tr.n_points > 50
+    rep = tracking_errors(video, tr)
+    assert rep["n_on_surface"] > 0.8 * rep["n_tracks"]
+    assert rep["error_median"] < 1.0
+    # lost tracks are NaN from their lost frame on, and observed before it
+    f = np.arange(12)[:, None]
+    nan = np.isnan(tr.tracks[:, 0])
+    np.testing.assert_array_equal(nan, f >= tr.lost_at[None])
+    assert tr.W.shape == (24, tr.n_points)
+
+
+def test_forward_backward_check_stops_occluded_tracks():
+    frames = _shifted_frames(8, occlude_at=4)
+    for tr in (track_sparse(frames), track_dense(frames, step=6)):
+        start = tr.tracks[0]
+        inside = ((start[0] > 42) & (start[0] < 72) & (start[1] > 42) & (start[1] < 72))
+        outside = ~_in_square(start) & (start[0] < 180) & (start[1] < 180)
+        assert inside.sum() >= 3 and outside.sum() >= 10
+        # occluded: lost exactly when the patch changes, NaN from then on
+        assert np.all(tr.lost_at[inside] == 4), tr.method
+        assert np.isnan(tr.tracks[4:, :, inside]).all()
+        # unoccluded tracks well inside the image: complete, and on the true motion
+        assert tr.complete[outside].mean() > 0.95, tr.method
+        keep = outside & tr.complete
+        shift = tr.tracks[-1, :, keep] - tr.tracks[0, :, keep]
+        # (chained DIS flow drifts by about 0.03 px per frame on this texture)
+        tol = 0.1 if tr.method == "sparse" else 0.3
+        np.testing.assert_allclose(np.median(shift, axis=0), [10.5, 3.5], atol=tol)
+
+
+def test_without_the_checks_the_occluded_tracks_would_drift():
+    frames = _shifted_frames(8, occlude_at=4)
+    off = dict(fb_threshold=1e6, max_residual=1e6)
+    tr = track_sparse(frames, keep_raw=True, neighbour_px=None, **off)     # no check
+    start = tr.tracks[0]
+    inside = (start[0] > 42) & (start[0] < 72) & (start[1] > 42) & (start[1] < 72)
+    assert tr.complete[inside].all()       # nothing noticed the occlusion
+    # the neighbour-motion check alone stops most of them (they lag behind their neighbours)
+    tr = track_sparse(frames, **off)
+    assert (~tr.complete[inside]).mean() > 0.5
+
+
+def test_dense_tracks_cover_the_surface(video):
+    tr = track_dense(video.frames, step=5)
+    rep = tracking_errors(video, tr)
+    assert rep["n_on_surface"] >= 0.95 * rep["n_tracks"]
+    assert rep["error_median"] < 1.0
+    tr2 = track_dense(video.frames, step=5, max_points=100)
+    assert tr2.n_points == 100
+
+
+# --------------------------------------------------------------------------- input errors
+
+def test_frames_from_folder_and_video_file(tmp_path, video):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for f, img in enumerate(video.frames[:5]):
+        cv2.imwrite(str(folder / f"{f:03d}.png"), img)
+    frames = load_frames(folder)
+    np.testing.assert_array_equal(frames, video.frames[:5])
+    path = tmp_path / "v.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (200, 160))
+    if not w.isOpened():
+        pytest.skip("no MJPG writer in this OpenCV build")
+    for img in video.frames[:5]:
+        w.write(img)
+    w.release()
+    assert load_frames(path).shape == (5, 160, 200, 3)
+    assert load_frames(path, max_frames=3).shape[0] == 3
+
+
+def _one_line(exc):
+    msg = str(exc.value)
+    assert msg and "\n" not in msg
+    return msg
+
+
+def test_bad_video_input_gives_one_line_errors(tmp_path):
+    with pytest.raises(OSError) as exc:
+        load_frames(tmp_path / "missing.mp4")
+    assert "not found" in _one_line(exc)
+    junk = tmp_path / "junk.mp4"
+    junk.write_bytes(b"this is not a video" * 100)
+    with pytest.raises(ValueError) as exc:
+        load_frames(junk)
+    assert "cannot" in _one_line(exc)
+    single = tmp_path / "single"
+    single.mkdir()
+    cv2.imwrite(str(single / "a.png"), _noise_texture((64, 64), 0))
+    with pytest.raises(ValueError) as exc:
+        load_frames(single)
+    assert "at least 2" in _one_line(exc)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError) as exc:
+        load_frames(empty)
+    assert "no images" in _one_line(exc)
+    flat = [np.full((80, 80), 120, np.uint8)] * 3
+    noisy = [np.clip(120 + np.random.default_rng(i).normal(0, 1, (80, 80)), 0, 255)
+             .astype(np.uint8) for i in range(3)]
+    for frames in (flat, noisy):
+        for tracker in (track_sparse, track_dense):
+            with pytest.raises(ValueError) as exc:
+                tracker(frames)
+            assert "textureless" in _one_line(exc)
+
+
+# --------------------------------------------------------------------------- reconstruction
+
+def test_reconstruct_tracks_uses_complete_tracks_or_missing_data():
+    import data_tools as dt
+
+    seq = dt.make_synthetic(F=20, P=30, K=1, seed=2)
+    W = seq.W.copy()
+    W[10:, 3] = np.nan                                  # track 3 lost from frame 5 on
+    vr = reconstruct_tracks(W, 1, method="pseudo_inverse")
+    assert vr.n_tracks == 30 and vr.n_complete == 29
+    if vr.missing_data:
+        assert vr.used.all() and vr.result.n_points == 30
+    else:
+        assert not vr.used[3] and vr.used.sum() == 29 and vr.result.n_points == 29
+    W[:, :] = np.nan
+    W[:, :2] = seq.W[:, :2]
+    with pytest.raises(ValueError, match="complete"):
+        reconstruct_tracks(W, 1, missing="complete")
+
+
+# --------------------------------------------------------------------------- commands
+
+def _run(argv):
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+def test_track_and_video_commands(tmp_path, video, capsys):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for f, img in enumerate(video.frames):
+        cv2.imwrite(str(folder / f"{f:03d}.png"), img)
+    out = tmp_path / "tracks.npz"
+    assert _run(["track", str(folder), "-o", str(out), "--quiet"]) == 0
+    with np.load(out) as z:
+        assert z["W"].shape[0] == 24 and z["tracks"].shape[1] == 2
+        assert z["colors"].shape == (z["W"].shape[1], 3)
+    rrd, res = tmp_path / "run.rrd", tmp_path / "run.npz"
+    assert _run(["video", str(folder), "--dense", "--step", "8", "--rrd", str(rrd),
+                 "-o", str(res), "--method", "pseudo_inverse", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "K=1" in text and "wrote Rerun recording" in text
+    assert rrd.stat().st_size > 10_000
+    with np.load(res) as z:
+        assert z["shapes"].shape[:2] == (12, 3) and int(z["K"]) == 1
+        assert z["shapes"].shape[2] == int(z["used"].sum())
+
+
+def test_commands_raise_one_line_errors(tmp_path):
+    with pytest.raises(OSError) as exc:
+        _run(["track", str(tmp_path / "nope.avi")])
+    _one_line(exc)
+    folder = tmp_path / "flat"
+    folder.mkdir()
+    for f in range(3):
+        cv2.imwrite(str(folder / f"{f}.png"), np.full((64, 64, 3), 90, np.uint8))
+    with pytest.raises(ValueError) as exc:
+        _run(["video", str(folder), "--quiet"])
+    assert "textureless" in _one_line(exc)
+
+
+def test_video_recording_is_small_and_decimated(tmp_path, video):
+    from nrsfm.recording_video import decimate, save_video_recording
+
+    tr = track_dense(video.frames, step=4)
+    seq = video.sequence(tr.tracks)
+    vr = reconstruct_tracks(seq.W, 1, method="pseudo_inverse", missing="complete")
+    gt = seq.shapes[:, :, vr.used]
+    used = np.zeros(tr.n_points, bool)
+    used[np.flatnonzero(seq.extra["valid"])[vr.used]] = True
+    info = save_video_recording(tmp_path / "v.rrd", video.frames, tr, vr.result, used,
+                                shapes_gt=gt, max_points_3d=200, max_points_2d=300)
+    assert info["points_3d"] == 200 and info["points_2d"] == 300
+    assert 0 < info["bytes"] < 2_000_000
+    assert len(decimate(10, 3)) == 3 and list(decimate(3, 10)) == [0, 1, 2]
+
+
+def test_help_lists_video_commands(capsys):
+    from nrsfm.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "track" in out and "video" in out
+
+
+def test_wide_factorisation_matches_the_svd():
+    """Dense W (P >> 2F) is factorised through the 2F x 2F Gram matrix."""
+    from nrsfm.measurement import factorize
+
+    rng = np.random.default_rng(0)
+    W = rng.standard_normal((40, 6)) @ rng.standard_normal((6, 2000))
+    W += 1e-3 * rng.standard_normal(W.shape)
+    f = factorize(W, 2)
+    U, s, Vt = np.linalg.svd(W, full_matrices=False)
+    np.testing.assert_allclose(f.M_hat @ f.B_hat, (U[:, :6] * s[:6]) @ Vt[:6], atol=1e-9)
+    np.testing.assert_allclose(f.singular_values[:6], s[:6], rtol=1e-9)
+    # the Gram matrix squares the spectrum: small singular values are accurate relative to
+    # s_1, not to themselves
+    np.testing.assert_allclose(f.singular_values, s, atol=1e-9 * s[0])
+    assert f.singular_values.shape == s.shape
