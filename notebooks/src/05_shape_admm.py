@@ -25,7 +25,9 @@
 #
 # The ADMM is a continuation ($\rho$ grows 10 % per iteration): its answer is where the path
 # freezes. The second half of this notebook sets beside it the solver of
-# `nrsfm.shape_bilinear` (`shape_solver="bilinear"`): the same weighted nuclear norm in the
+# `nrsfm.shape_bilinear` (`shape_solver="bilinear"`, the library's default: it measured
+# better on exactness, stability and noise; `docs/shape_stage.md`). The first half passes
+# `shape_solver="admm"` explicitly. The bilinear solver minimises the same weighted nuclear norm in the
 # factored form of Iglesias, Olsson & Örnhag (ECCV 2020),
 # $E(\mathbf B,\mathbf C)=\tfrac12\|\mathbf W-\mathbf R\mathbf X\|_F^2+\tfrac\mu2\sum_i a_i(\|\mathbf B_i\|^2+\|\mathbf C_i\|^2)$,
 # $\mathbf X^\sharp=\mathbf B\mathbf C^\top$ of rank $K$, minimised to a point where its
@@ -101,7 +103,8 @@ for N in (0, 1, 3):
 
 # %%
 t0 = time.perf_counter()
-organic = nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations)
+organic = nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations,
+                            shape_solver="admm")
 print(f"{time.perf_counter() - t0:.2f} s")
 st = organic.shape_stage
 h = st.history
@@ -125,7 +128,8 @@ assert st.n_iter < 339                           # the rho schedule alone would 
 # %%
 runs = {"organic": organic}
 for m in ("wnn", "bmm", "pseudo_inverse"):
-    runs[m] = nrsfm.reconstruct(seq.W, K, method=m, rotations=seq.rotations)
+    runs[m] = nrsfm.reconstruct(seq.W, K, method=m, rotations=seq.rotations,
+                                shape_solver="admm")
 e3d = {m: r.errors(seq.shapes)["e3d"] for m, r in runs.items()}
 for m, e in e3d.items():
     print(f"{m:15s} e3d {e:.4f}")
@@ -154,7 +158,8 @@ print("e3d of optimize_shapes(c * W):", {c: round(e, 4) for c, e in by_scale.ite
 print(f"reconstruct normalises by scale = {organic.scale:.3g}: e3d {e3d['organic']:.4f}")
 # measured: 0.0073, 0.0138, 0.30
 assert by_scale[10.0] > 10 * by_scale[1.0]
-scaled_run = nrsfm.reconstruct(10 * seq.W, K, method="organic", rotations=seq.rotations)
+scaled_run = nrsfm.reconstruct(10 * seq.W, K, method="organic", rotations=seq.rotations,
+                               shape_solver="admm")
 assert np.isclose(scaled_run.errors(seq.shapes)["e3d"], e3d["organic"], rtol=1e-3)  # measured 2e-4
 
 # %% [markdown]
@@ -167,7 +172,7 @@ assert np.isclose(scaled_run.errors(seq.shapes)["e3d"], e3d["organic"], rtol=1e-
 
 # %%
 Ns = [0, 1, 2, 3, 4, 5]
-abl = [nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations,
+abl = [nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations, shape_solver="admm",
                          shape_options=dict(N=N)).errors(seq.shapes)["e3d"] for N in Ns]
 print("synthetic e3d by N:", dict(zip(Ns, np.round(abl, 4))))
 # measured: 0.0170 0.0170 0.0169 0.0169 0.1952 0.2505
@@ -178,6 +183,7 @@ if os.environ.get("NRSFM_DATA"):
     pickup = data_tools.load_mocap("pickup")
     Ns_m = [0, 1, 2, 3, 5]
     abl_m = [nrsfm.reconstruct(pickup.W, pickup.K, method="organic", rotations=pickup.rotations,
+                               shape_solver="admm",
                                shape_options=dict(N=N)).errors(pickup.shapes)["e3d"]
              for N in Ns_m]
     print("pickup e3d by N:", dict(zip(Ns_m, np.round(abl_m, 4))))
