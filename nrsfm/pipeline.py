@@ -57,6 +57,14 @@ class Reconstruction:
         Every setting used.
     timings : dict
         Seconds per stage.
+    observed : (F, P) bool ndarray or None
+        Where the input had missing observations: True where a point was observed in a
+        frame (None for complete input).
+    W_completed : (2F, P) ndarray or None
+        Where the input had missing observations: the completed W (input units, before
+        centring) that the pipeline ran on.
+    completion : CompletionResult or None
+        The completion's result (:mod:`nrsfm.completion`).
     """
 
     rotations: np.ndarray
@@ -72,6 +80,9 @@ class Reconstruction:
     shape_stage: object = None
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    observed: np.ndarray = None
+    W_completed: np.ndarray = None
+    completion: object = None
 
     @property
     def n_frames(self):
@@ -158,7 +169,8 @@ def _progress_printer(progress):
 
 
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, progress=False, blas_thread_limit=1):
+                shape_options=None, progress=False, blas_thread_limit=1,
+                missing="complete"):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -185,6 +197,12 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None
         BLAS threads while the solvers run (the matrices are small: one is fastest).
+    missing : {"complete", "error"}
+        What to do with missing observations: NaN in W or tracks (a point counts as missing
+        in a frame when either coordinate is NaN), or the mask of a
+        ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
+        (:func:`nrsfm.completion.complete_measurements`) and run the pipeline on it; the
+        result keeps ``observed`` and ``W_completed``. ``error``: refuse.
 
     Returns
     -------
@@ -193,18 +211,38 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     Raises
     ------
     ValueError
-        Bad shapes, non-finite input, K out of range, unknown method, bad rotations.
+        Bad shapes, non-finite input, K out of range, unknown method, bad rotations;
+        missing observations with ``missing="error"``; a frame or point with too few
+        observations to be determined (named in the message).
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
-    W = check_measurements(W)
+    if missing not in ("complete", "error"):
+        raise ValueError(f"missing must be 'complete' or 'error'; got {missing!r}")
+    W = check_measurements(W, allow_missing=True)
     F, P = W.shape[0] // 2, W.shape[1]
+    completion = None
+    t_completion = None
+    if np.isnan(W).any():
+        if missing == "error":
+            n_miss = int(np.isnan(W).reshape(F, 2, P).any(axis=1).sum())
+            raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
+                             f"masked) and missing='error'; use missing='complete' to "
+                             f"fill them by low-rank completion")
+        from .completion import complete_measurements
+
+        t0 = time.perf_counter()
+        limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
+        with limit:
+            completion = complete_measurements(W)
+        t_completion = time.perf_counter() - t0
+        W = completion.W
     K = check_K(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
     say = _progress_printer(progress)
     rotation_strategy, prior = METHODS[method]
-    timings = {}
+    timings = {} if t_completion is None else {"completion": t_completion}
 
     limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
     with limit:
@@ -243,11 +281,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
                   shape_prior=prior, rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
-                  rotations_given=rotation_stage is None)
+                  rotations_given=rotation_stage is None, missing=missing)
     return Reconstruction(rotations=rotations, shapes=shapes * scale, method=method, K=K,
                           W=Wc, row_means=row_means, scale=scale, factorization=fact,
                           X_init=X_init * scale, rotation_stage=rotation_stage,
-                          shape_stage=shape_stage, params=params, timings=timings)
+                          shape_stage=shape_stage, params=params, timings=timings,
+                          observed=None if completion is None else completion.observed,
+                          W_completed=None if completion is None else completion.W,
+                          completion=completion)
 
 
 class _nullcontext:
