@@ -149,6 +149,7 @@ def build_parser():
                    help="use ground-truth rotations (shape stage only)")
     _add_common(p)
     p.set_defaults(func=cmd_mocap)
+    from .experiments.cli import add_benchmark_command; add_benchmark_command(sub)  # noqa: E702
     return parser
 
 
