@@ -4,19 +4,26 @@ A missing observation is a (frame, point) pair: both coordinates go together, so
 is per point and frame, ``observed`` (F, P), expanded to W's (2F, P) rows.
 
 Method (choice, measurements and reasons in ``docs/experiments.md``): nuclear-norm
-completion with free per-row offsets (the per-frame translation),
+completion with free per-row offsets (the per-frame translation) of the time-lagged matrix
 
-    minimise_{L, t}  1/2 ||P_Omega(W - L - t 1')||_F^2 + tau ||L||_*,
+    H(W) = [S_{-1} W, W, S_{+1} W]      (2F, 3P),   S_d: frames shifted by d,
 
-solved by soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010): fill the missing entries
+    minimise_{L, t}  1/2 ||P_Omega(H(W) - L - t 1')||_F^2 + tau ||L||_*,
+
+with every copy of a missing entry kept equal. The lags put a frame's neighbours beside it
+in the same row, so a missing point is seen through its own trajectory at the adjacent
+frames as well as through the other points: the rows of H are still low-rank (the
+trajectories are smooth), and a row of H has three times the observed entries of a row of
+W. ``lags=(0,)`` is plain nuclear-norm completion of W (for frames in no particular order).
+Solved by soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010): fill the missing entries
 with the current estimate, take the row means as t, soft-threshold the singular values of
-the centred matrix by tau, repeat. tau is continued from ``sigma_1 / 10`` down to its final
-value ``tau = 1e-3 sigma_1`` (sigma_1: the largest singular value of the mean-filled,
-row-centred W), with warm starts: the same continuation idea as Cabral et al.'s rank
-continuation (ICCV 2013), whose bilinear objective has the same minimisers as this
-nuclear-norm problem when the factor rank is large enough (their Sec. 3). The regulariser
-is computed from W alone and is scale-invariant (multiply W by c and the completion is
-multiplied by c).
+the centred H by tau, average the copies of each missing entry, repeat. tau is continued
+from ``sigma_1 / 10`` down to its final value ``tau = 1e-3 sigma_1`` (sigma_1: the largest
+singular value of the mean-filled, row-centred H), with warm starts: the continuation idea
+of Cabral et al.'s rank continuation (ICCV 2013), whose bilinear objective has the same
+minimisers as the nuclear norm when the factor rank is large enough. The regulariser is
+computed from W alone and the completion is scale-equivariant (W times c gives the
+completion times c).
 
 The paper completes W with Cabral et al.'s method and then runs its algorithm on the
 completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``).
@@ -32,6 +39,8 @@ __all__ = ["CompletionResult", "complete_measurements", "observed_mask"]
 
 #: Final threshold as a fraction of sigma_1 (see the module docstring).
 TAU_FRACTION = 1e-3
+#: Default temporal lags (frames) of the lagged matrix H(W).
+LAGS = (-1, 0, 1)
 
 
 @dataclass
@@ -50,6 +59,8 @@ class CompletionResult:
         Number of singular values left above the threshold at the end.
     n_iter : int
         Soft-impute iterations over the whole continuation.
+    lags : tuple of int
+        Temporal lags used.
     converged : bool
         The last stage's relative change fell below ``tol``.
     history : dict of ndarrays
@@ -63,6 +74,7 @@ class CompletionResult:
     n_iter: int
     converged: bool
     history: dict = field(default_factory=dict)
+    lags: tuple = LAGS
 
     @property
     def missing_fraction(self):
@@ -116,8 +128,13 @@ def observed_mask(W, min_points=3, min_frames=2):
     return observed
 
 
+def _lag_index(F, lags):
+    """(len(lags), F) frame index of each lagged copy (edges repeated)."""
+    return np.clip(np.arange(F)[None, :] + np.asarray(lags)[:, None], 0, F - 1)
+
+
 def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTION,
-                          n_stages=8, tol=1e-6, max_iter=3000):
+                          lags=LAGS, n_stages=8, tol=1e-6, max_iter=3000):
     """Fill the missing entries of W by nuclear-norm completion (soft-impute).
 
     Parameters
@@ -130,6 +147,9 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
         Final singular value threshold in W's units; default ``tau_fraction * sigma_1``.
     tau_fraction : float
         See ``tau``; must be positive.
+    lags : sequence of int
+        Temporal lags (frames) of the lagged matrix, containing 0; ``(0,)``: plain
+        nuclear-norm completion of W (use it when the frames are not a time sequence).
     n_stages : int
         Continuation stages, tau decreasing geometrically from ``sigma_1 / 10``.
     tol : float
@@ -161,6 +181,9 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
         observed = observed & observed_mask(W)
     if not (np.isfinite(tau_fraction) and tau_fraction > 0):
         raise ValueError(f"tau_fraction must be positive; got {tau_fraction!r}")
+    lags = tuple(int(d) for d in lags)
+    if 0 not in lags or len(set(lags)) != len(lags):
+        raise ValueError(f"lags must be distinct integers including 0; got {lags}")
     if n_stages < 1 or max_iter < 1:
         raise ValueError(f"n_stages and max_iter must be >= 1; got {n_stages}, {max_iter}")
     obs2 = np.repeat(observed, 2, axis=0)                       # (2F, P)
@@ -168,11 +191,26 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
         return CompletionResult(W=W, observed=observed, tau=0.0,
                                 rank=int(np.linalg.matrix_rank(W)), n_iter=0,
                                 converged=True, history=dict(tau=np.zeros(0),
-                                                             change=np.zeros(0)))
+                                                             change=np.zeros(0)), lags=lags)
     Wz = np.where(obs2, W, 0.0)
     t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
     Z = np.where(obs2, W, t)                                    # mean fill
-    sigma1 = float(np.linalg.svd(Z - Z.mean(axis=1, keepdims=True), compute_uv=False)[0])
+    idx = _lag_index(F, lags)                                   # (n_lags, F)
+    counts = np.zeros(F)
+    np.add.at(counts, idx.ravel(), 1.0)
+
+    def lagged(Z):                                              # H(Z), (2F, n_lags P)
+        Zf = Z.reshape(F, 2, P)
+        return np.concatenate([Zf[i].reshape(2 * F, P) for i in idx], axis=1)
+
+    def average_copies(L):                                      # H^-1: mean of the copies
+        acc = np.zeros((F, 2, P))
+        for j, i in enumerate(idx):
+            np.add.at(acc, i, L[:, j * P:(j + 1) * P].reshape(F, 2, P))
+        return (acc / counts[:, None, None]).reshape(2 * F, P)
+
+    H = lagged(Z)
+    sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
     if not sigma1 > 0:
         raise ValueError("the observed entries of W have no spread: nothing to complete")
     tau_final = tau_fraction * sigma1 if tau is None else float(tau)
@@ -187,11 +225,12 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
         converged = False
         while n_iter < max_iter:
             n_iter += 1
-            t = Z.mean(axis=1, keepdims=True)                   # free row offsets
-            U, s, Vt = np.linalg.svd(Z - t, full_matrices=False)
+            H = lagged(Z)
+            t = H.mean(axis=1, keepdims=True)                   # free row offsets
+            U, s, Vt = np.linalg.svd(H - t, full_matrices=False)
             s = np.maximum(s - tau_s, 0.0)                      # nuclear-norm prox
             rank = int(np.count_nonzero(s))
-            L = (U[:, :rank] * s[:rank]) @ Vt[:rank] + t
+            L = average_copies((U[:, :rank] * s[:rank]) @ Vt[:rank] + t)
             change = (np.linalg.norm(L[missing] - Z[missing])
                       / max(np.linalg.norm(Z), 1e-300))
             Z[missing] = L[missing]
@@ -203,4 +242,4 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
     return CompletionResult(W=Z, observed=observed, tau=float(tau_final), rank=rank,
                             n_iter=n_iter, converged=converged,
                             history=dict(tau=np.asarray(hist_tau),
-                                         change=np.asarray(hist_change)))
+                                         change=np.asarray(hist_change)), lags=lags)

@@ -41,7 +41,7 @@ def settings(quick=False):
     return dict(_QUICK if quick else _FULL)
 
 
-def _paper_K(name):
+def paper_K(name):
     import data_tools
 
     if name in data_tools.MOCAP_K:
@@ -54,7 +54,7 @@ def _paper_K(name):
 def _dai_K(name):
     import data_tools
 
-    return data_tools.DAI_K.get(name, _paper_K(name))
+    return data_tools.DAI_K.get(name, paper_K(name))
 
 
 def _k_max(name, data):
@@ -109,7 +109,7 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
 
     def mocap(name, method, K=None):
         return mk("mocap", sequence=name, method=method,
-                  K=int(_paper_K(name) if K is None else K))
+                  K=int(paper_K(name) if K is None else K))
 
     def subset(key):
         return [n for n in seqs if s[key] is None or n in s[key]] or [one]
@@ -146,7 +146,7 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
     if "k_sweep" in only:
         ts = []
         for n in subset("sweep_sequences"):
-            Kp, Km = _paper_K(n), _k_max(n, data)
+            Kp, Km = paper_K(n), _k_max(n, data)
             Ks = (range(1, min(Km, s["k_max"]) + 1) if s["k_span"] is None
                   else [Kp + d for d in s["k_span"]])
             ts += [mk("k_sweep", sequence=n, K=int(K)) for K in Ks if 1 <= K <= Km]

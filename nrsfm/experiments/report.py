@@ -73,13 +73,15 @@ def _mean_std(vals):
 
 # ------------------------------------------------------------------------------ tables
 def _mocap_tables(rows, seqs):
-    from data_tools import DAI_K, MOCAP_K
+    from data_tools import DAI_K
+
+    from .plan import paper_K
 
     out = []
     body = []
     for n in seqs:
         for m in ("organic", "bmm", "wnn"):
-            r = _get(rows, sequence=n, method=m, K=MOCAP_K.get(n, -1))
+            r = _get(rows, sequence=n, method=m, K=paper_K(n))
             if r is None:
                 continue
             col = _PAPER_COLUMN[m]
@@ -357,11 +359,10 @@ def build_tables(plan, results, sequences):
             out += results.get(t.key, [])
         return out
 
-    from data_tools import MOCAP_K
+    from .plan import paper_K
 
-    mocap_all = [r for r in (rows_of("mocap") + rows_of("missing", "mocap")
-                             + rows_of("auto_k", "mocap"))]
-    paper_k = [r for r in mocap_all if r["K"] == MOCAP_K.get(r["sequence"], r["K"])]
+    mocap_all = rows_of("mocap") + rows_of("missing", "mocap") + rows_of("auto_k", "mocap")
+    paper_k = [r for r in mocap_all if r["K"] == paper_K(r["sequence"])]
     tables, extra = [], {}
     if "mocap" in plan:
         tables += _mocap_tables(rows_of("mocap"), sequences)
