@@ -236,6 +236,12 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         with limit:
             completion = complete_measurements(W)
         t_completion = time.perf_counter() - t0
+        if not completion.converged:
+            import warnings
+
+            warnings.warn(f"the completion of W stopped at its iteration cap "
+                          f"({completion.n_iter}) before converging: the filled entries "
+                          f"may be inaccurate", RuntimeWarning, stacklevel=2)
         W = completion.W
     K = check_K(K, F, P)
     if rotations is not None:

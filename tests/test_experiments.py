@@ -131,8 +131,11 @@ def test_plan_covers_every_experiment():
 
 def test_choose_K_on_synthetic_sequences():
     for K in (1, 2, 3, 4):
-        seq = dt.make_synthetic(F=80, P=40, K=K, seed=K)
-        assert choose_K(seq.W)[0] == K
+        for noise in (0.0, 0.05):                    # Gavish-Donoho handles the noise
+            seq = dt.make_synthetic(F=80, P=40, K=K, seed=K, noise=noise)
+            assert choose_K(seq.W)[0] == K
+    Wm, _ = dt.drop_tracks(seq.W, 0.2, seed=0)
+    assert choose_K(Wm)[0] == 4                      # missing entries: completed first
     with pytest.raises(ValueError, match="relative_floor"):
         choose_K(seq.W, relative_floor=2)
 

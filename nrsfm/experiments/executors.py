@@ -125,7 +125,11 @@ def run_tasks(tasks, cache_dir=None, workers=1, scheduler=None, progress=None):
 
 
 def _run_dask(todo, scheduler, done):
-    from dask.distributed import Client, as_completed as dask_completed
+    try:
+        from dask.distributed import Client, as_completed as dask_completed
+    except ImportError as exc:
+        raise ValueError("running on a Dask scheduler needs dask.distributed: "
+                         "pip install 'nrsfm[distributed]'") from exc
 
     own = not hasattr(scheduler, "submit")
     client = Client(scheduler) if own else scheduler

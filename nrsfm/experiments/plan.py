@@ -26,7 +26,8 @@ _FULL = dict(methods=("organic", "bmm", "wnn"), noise_sigmas=(0.01, 0.05, 0.1, 0
              noise_runs=10, noise_methods=("organic", "bmm", "wnn"),
              missing_methods=("organic", "bmm"), missing_patterns=("uniform", "tracking"),
              missing_fraction=0.3, curve_fractions=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
-             curve_methods=("organic", "bmm"), Ns=(0, 1, 2, 3, 4, 5), k_max=14,
+             curve_methods=("organic", "bmm"), Ns=(0, 1, 2, 3, 4, 5),
+             k_grid=(1, 2, 3, 4, 5, 6, 8, 10, 12, 14),
              k_span=None, ablation_sequences=None, sweep_sequences=None,
              noise_sequence="pickup", curve_sequence="pickup")
 
@@ -147,7 +148,7 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
         ts = []
         for n in subset("sweep_sequences"):
             Kp, Km = paper_K(n), _k_max(n, data)
-            Ks = (range(1, min(Km, s["k_max"]) + 1) if s["k_span"] is None
+            Ks = (sorted({K for K in s["k_grid"] if K <= Km} | {Kp}) if s["k_span"] is None
                   else [Kp + d for d in s["k_span"]])
             ts += [mk("k_sweep", sequence=n, K=int(K)) for K in Ks if 1 <= K <= Km]
         plan["k_sweep"] = ts

@@ -67,9 +67,13 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     t0 = time.perf_counter()
     bar = None
     if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(tasks), desc="nrsfm benchmark", unit="task", file=sys.stderr)
+        try:
+            from tqdm import tqdm
+        except ImportError:                     # plain lines without the optional tqdm
+            bar = _LineProgress(len(tasks))
+        else:
+            bar = tqdm(total=len(tasks), desc="nrsfm benchmark", unit="task",
+                       file=sys.stderr)
     n_cached = 0
 
     def tick(task, rows, cached):
@@ -98,3 +102,21 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     files, tables = write_report(out, plan, results, list(seqs), header=header)
     return dict(files=files, tables=tables, rows=rows, n_tasks=len(tasks),
                 n_cached=n_cached, seconds=seconds, out=out)
+
+
+class _LineProgress:
+    """Minimal stand-in for a tqdm bar: one line per finished task on stderr."""
+
+    def __init__(self, total):
+        self.total, self.n, self.text = total, 0, ""
+
+    def set_postfix_str(self, text, refresh=False):
+        self.text = text
+
+    def update(self, k):
+        self.n += k
+        print(f"nrsfm benchmark {self.n}/{self.total} {self.text}", file=sys.stderr,
+              flush=True)
+
+    def close(self):
+        pass
