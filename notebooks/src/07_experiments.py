@@ -19,8 +19,8 @@
 # process or machine runs it. Each finished task is written atomically to `OUT/cache/`;
 # running the command again skips what is there, so an interrupted sweep resumes.
 #
-# This notebook runs a subset of the quick set on pickup (fast enough for CI) through the
-# Python API, then shows the tables and plots it wrote. Without `NRSFM_DATA` it runs the same
+# This notebook runs a subset of the quick set on pickup (fast enough for CI: the uniform
+# missing pattern only) through the Python API, then shows the tables and plots it wrote. Without `NRSFM_DATA` it runs the same
 # subset on a small synthetic sequence instead.
 
 # %%
@@ -43,6 +43,7 @@ if not HAVE_DATA:
     assert not os.environ.get("CI"), "CI must set NRSFM_DATA to the folder holding mocap/"
 SEQUENCES = ["pickup"] if HAVE_DATA else ["synthetic-3-80-30-2"]
 ONLY = ["mocap", "pseudo_inverse", "missing", "n_ablation", "auto_k"]
+OVERRIDES = {"missing_patterns": ("uniform",)}
 OUT = output_path("07_experiments")
 for k, v in EXPERIMENTS.items():
     print(f"{k:18s} {v}")
@@ -54,7 +55,7 @@ for k, v in EXPERIMENTS.items():
 # baseline of the missing-data table, runs once).
 
 # %%
-plan = build_plan(only=ONLY, sequences=SEQUENCES, quick=True,
+plan = build_plan(only=ONLY, sequences=SEQUENCES, quick=True, overrides=OVERRIDES,
                   data=Path(os.environ["NRSFM_DATA"]) / "mocap" if HAVE_DATA else None)
 for exp, tasks in plan.items():
     print(f"{exp:16s} {len(tasks):3d} tasks, e.g. {tasks[0]}")
@@ -68,11 +69,12 @@ print("unique tasks:", len(unique_tasks(plan)))
 # %%
 t0 = time.perf_counter()
 res = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY, sequences=SEQUENCES,
-                    quick=True, workers=2, progress=False)
+                    quick=True, workers=2, progress=False, overrides=OVERRIDES)
 print(f"{res['n_tasks']} tasks, {res['n_cached']} cached, {time.perf_counter() - t0:.1f} s;"
       f" wrote {len(res['files'])} files to {OUT}")
 again = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY,
-                      sequences=SEQUENCES, quick=True, workers=1, progress=False)
+                      sequences=SEQUENCES, quick=True, workers=1, progress=False,
+                      overrides=OVERRIDES)
 assert again["n_cached"] == again["n_tasks"], "the second run must come from the cache"
 
 # %% [markdown]
@@ -100,8 +102,8 @@ for row in missing.rows:
     print(f"{r['sequence']:>10s} {r['pattern']:>8s} {r['method']:>8s}: missing "
           f"{r['missing']:.2f}, fill error {r['fill error']:.4f}, e3d {r['e3d']:.4f} "
           f"(complete {r['complete-data e3d']:.4f}, ratio {r['ratio']:.2f})")
-    assert r["fill error"] < 0.1          # measured: pickup 0.006 (uniform), 0.02 (tracking)
-    if HAVE_DATA and r["pattern"] == "uniform" and r["method"] == "organic":
+    assert r["fill error"] < 0.05         # measured: pickup 0.0065; synthetic 0.0237
+    if HAVE_DATA and r["method"] == "organic":
         assert r["ratio"] < 1.5           # acceptance: within 1.5x (measured 1.03)
 
 # %% [markdown]

@@ -65,7 +65,7 @@ def _k_max(name, data):
     return min(2 * seq.n_frames, seq.n_points) // 3
 
 
-def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
+def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overrides=None):
     """Tasks of the selected experiments, without duplicates, in a stable order.
 
     Parameters
@@ -80,6 +80,9 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
     data : str, optional
         Folder with the MoCap ``.mat`` files (passed to every task).
     seed : int
+    overrides : dict, optional
+        Replace some of the settings (:func:`settings`), e.g.
+        ``{"missing_patterns": ("uniform",)}``.
 
     Returns
     -------
@@ -102,6 +105,10 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0):
     if not seqs:
         raise ValueError("no sequences given")
     s = settings(quick)
+    bad = sorted(set(overrides or {}) - set(s))
+    if bad:
+        raise ValueError(f"unknown setting(s) {bad}; expected some of {sorted(s)}")
+    s.update(overrides or {})
     data = None if data is None else str(data)
     one = s["noise_sequence"] if s["noise_sequence"] in seqs else seqs[0]
 
