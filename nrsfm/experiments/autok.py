@@ -3,7 +3,7 @@
 Rule: the rank r of W (row-centred; its completion when observations are missing) is the
 number of singular values above ``max(RELATIVE_FLOOR sigma_1, tau_GD)``, where tau_GD is
 Gavish & Donoho's optimal hard threshold for white noise of unknown level ("The optimal
-hard threshold for singular values is 4/sqrt(3)", IEEE Trans. Inf. Theory 2014, Eq. 4-5):
+hard threshold for singular values is 4/sqrt(3)", IEEE Trans. Inf. Theory 2014):
 ``tau_GD = omega(beta) median(sigma)``, ``omega(beta) ~ 0.56 beta^3 - 0.95 beta^2 +
 1.82 beta + 1.43``, ``beta = min(2F, P) / max(2F, P)``. The relative floor counts model
 error and round-off as noise where the data has no measurement noise (the MoCap files).
