@@ -29,12 +29,14 @@ _FULL = dict(methods=("organic", "bmm", "wnn"), noise_sigmas=(0.01, 0.05, 0.1, 0
              curve_methods=("organic", "bmm"), Ns=(0, 1, 2, 3, 4, 5),
              k_grid=(1, 2, 3, 4, 5, 6, 8, 10, 12, 14),
              k_span=None, ablation_sequences=None, sweep_sequences=None,
+             missing_sequences=None,
              noise_sequence="pickup", curve_sequence="pickup")
 
 _QUICK = dict(_FULL, methods=("organic", "bmm"), noise_sigmas=(0.01, 0.1, 0.25),
               noise_runs=2, curve_fractions=(0.1, 0.3, 0.5), curve_methods=("organic",),
               missing_patterns=("uniform", "tracking"), k_span=(-4, -2, 0),
-              ablation_sequences=("pickup",), sweep_sequences=("pickup",))
+              ablation_sequences=("pickup",), sweep_sequences=("pickup",),
+              missing_sequences=("pickup",))
 
 
 def settings(quick=False):
@@ -141,10 +143,11 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
                          for sg in s["noise_sigmas"] for m in s["noise_methods"]
                          for r in range(s["noise_runs"])]
     if "missing" in only:
-        ts = [mocap(n, m) for n in seqs for m in s["missing_methods"]]
+        mseqs = subset("missing_sequences")
+        ts = [mocap(n, m) for n in mseqs for m in s["missing_methods"]]
         ts += [mk("missing", sequence=n, method=m, pattern=pt,
                   fraction=float(s["missing_fraction"]))
-               for n in seqs for pt in s["missing_patterns"] for m in s["missing_methods"]]
+               for n in mseqs for pt in s["missing_patterns"] for m in s["missing_methods"]]
         ts += [mk("missing", sequence=one, method=m, pattern="uniform", fraction=float(f))
                for f in s["curve_fractions"] for m in s["curve_methods"]]
         plan["missing"] = ts
