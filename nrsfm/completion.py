@@ -134,7 +134,7 @@ def _lag_index(F, lags):
 
 
 def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTION,
-                          lags=LAGS, n_stages=8, tol=1e-6, max_iter=1000):
+                          lags=LAGS, n_stages=8, tol=1e-6, max_iter=500):
     """Fill the missing entries of W by nuclear-norm completion (soft-impute).
 
     Parameters

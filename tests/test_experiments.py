@@ -140,6 +140,7 @@ def test_choose_K_on_synthetic_sequences():
         choose_K(seq.W, relative_floor=2)
 
 
+@pytest.mark.filterwarnings("ignore:the completion of W stopped")   # tracking, F = 30
 def test_benchmark_command_writes_tables_and_plots(tmp_path):
     from nrsfm.cli import main
 
