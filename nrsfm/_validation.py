@@ -13,13 +13,16 @@ def _finite(A, name):
         raise ValueError(f"{name} contains {bad} NaN or infinite entries")
 
 
-def check_measurements(W, name="W"):
+def check_measurements(W, name="W", allow_missing=False):
     """Return the measurement matrix as a float (2F, P) array.
 
     Parameters
     ----------
     W : (2F, P) or (F, 2, P) array_like
         Interleaved rows ``x_f, y_f``, or per-frame tracks.
+    allow_missing : bool
+        Accept NaN entries (missing observations); infinite entries are still refused.
+        A ``numpy.ma.MaskedArray`` then has its masked entries turned into NaN.
 
     Returns
     -------
@@ -32,7 +35,10 @@ def check_measurements(W, name="W"):
         Wrong number of dimensions, an odd number of rows, fewer than 2 frames or
         3 points, or non-finite entries.
     """
-    A = np.array(W, dtype=float, copy=True)
+    if allow_missing and isinstance(W, np.ma.MaskedArray):
+        A = np.ma.filled(W.astype(float), np.nan)
+    else:
+        A = np.array(W, dtype=float, copy=True)
     if A.ndim == 3:
         if A.shape[1] != 2:
             raise ValueError(f"{name} as tracks must have shape (F, 2, P); got {A.shape}")
@@ -46,7 +52,10 @@ def check_measurements(W, name="W"):
         raise ValueError(f"{name} needs at least 2 frames; got F={F} (shape {A.shape})")
     if P < 3:
         raise ValueError(f"{name} needs at least 3 points; got P={P} (shape {A.shape})")
-    _finite(A, name)
+    if allow_missing:
+        _finite(np.nan_to_num(A, nan=0.0, posinf=np.inf, neginf=-np.inf), name)
+    else:
+        _finite(A, name)
     return A
 
 

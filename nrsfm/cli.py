@@ -373,9 +373,16 @@ def add_mocap_command(sub):
 
 # --------------------------------------------------------------------------- parser, main
 
+def _add_benchmark_command(sub):
+    from .experiments.cli import add_benchmark_command   # matplotlib etc. load lazily
+
+    add_benchmark_command(sub)
+
+
 #: Subcommand registrations, in the order ``nrsfm --help`` lists them. Other modules add
 #: theirs with one line here: ``COMMANDS.append(add_NAME_command)``.
-COMMANDS = [add_demo_command, add_run_command, add_mocap_command, add_video_commands]
+COMMANDS = [add_demo_command, add_run_command, add_mocap_command, add_video_commands,
+            _add_benchmark_command]
 
 
 def build_parser():

@@ -60,6 +60,14 @@ class Reconstruction:
         Seconds per stage.
     diagnostics : nrsfm.diagnostics.Diagnostics or None
         Measured quality signals and the flags raised (see :mod:`nrsfm.diagnostics`).
+    observed : (F, P) bool ndarray or None
+        Where the input had missing observations: True where a point was observed in a
+        frame (None for complete input).
+    W_completed : (2F, P) ndarray or None
+        Where the input had missing observations: the completed W (input units, before
+        centring) that the pipeline ran on.
+    completion : CompletionResult or None
+        The completion's result (:mod:`nrsfm.completion`).
     """
 
     rotations: np.ndarray
@@ -76,6 +84,9 @@ class Reconstruction:
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     diagnostics: object = None
+    observed: np.ndarray = None
+    W_completed: np.ndarray = None
+    completion: object = None
 
     @property
     def n_frames(self):
@@ -164,7 +175,8 @@ def _progress_printer(progress):
 
 
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, shape_solver="bilinear", progress=False, blas_thread_limit=1):
+                shape_options=None, shape_solver="bilinear", progress=False,
+                blas_thread_limit=1, missing="complete"):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -197,6 +209,12 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None
         BLAS threads while the solvers run (the matrices are small: one is fastest).
+    missing : {"complete", "error"}
+        What to do with missing observations: NaN in W or tracks (a point counts as missing
+        in a frame when either coordinate is NaN), or the mask of a
+        ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
+        (:func:`nrsfm.completion.complete_measurements`) and run the pipeline on it; the
+        result keeps ``observed`` and ``W_completed``. ``error``: refuse.
 
     Returns
     -------
@@ -207,7 +225,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     ValueError
         Bad shapes, non-finite input, K out of range (including 3K above
         ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, bad
-        rotations.
+        rotations; missing observations with ``missing="error"``; a frame or point with
+        too few observations to be determined (named in the message).
 
     Warns
     -----
@@ -221,15 +240,39 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     if shape_solver not in SHAPE_SOLVERS:
         raise ValueError(f"unknown shape_solver {shape_solver!r}; expected one of "
                          f"{list(SHAPE_SOLVERS)}")
-    W = check_measurements(W)
+    if missing not in ("complete", "error"):
+        raise ValueError(f"missing must be 'complete' or 'error'; got {missing!r}")
+    W = check_measurements(W, allow_missing=True)
     F, P = W.shape[0] // 2, W.shape[1]
+    completion = None
+    t_completion = None
+    if np.isnan(W).any():
+        if missing == "error":
+            n_miss = int(np.isnan(W).reshape(F, 2, P).any(axis=1).sum())
+            raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
+                             f"masked) and missing='error'; use missing='complete' to "
+                             f"fill them by low-rank completion")
+        from .completion import complete_measurements
+
+        t0 = time.perf_counter()
+        limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
+        with limit:
+            completion = complete_measurements(W)
+        t_completion = time.perf_counter() - t0
+        if not completion.converged:
+            import warnings
+
+            warnings.warn(f"the completion of W stopped at its iteration cap "
+                          f"({completion.n_iter}) before converging: the filled entries "
+                          f"may be inaccurate", RuntimeWarning, stacklevel=2)
+        W = completion.W
     K = check_K(K, F, P)
     K = check_centred_rank(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
     say = _progress_printer(progress)
     rotation_strategy, prior = METHODS[method]
-    timings = {}
+    timings = {} if t_completion is None else {"completion": t_completion}
 
     limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
     with limit:
@@ -280,7 +323,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                   shape_prior=prior, shape_solver=shape_solver,
                   rotation_options=dict(rotation_options or {}),
                   shape_options=dict(shape_options or {}), scale=scale,
-                  rotations_given=rotation_stage is None)
+                  rotations_given=rotation_stage is None, missing=missing)
     shapes_out, X_init_out = (shapes * s) * p2, (X_init * s) * p2
     if not (np.all(np.isfinite(shapes_out)) and np.isfinite(scale)):
         raise ValueError(f"the shapes overflow in the input's units (max|W| = "
@@ -289,7 +332,10 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                           W=Wc, row_means=row_means, scale=scale, factorization=fact,
                           X_init=X_init_out, rotation_stage=rotation_stage,
                           shape_stage=shape_stage, params=params, timings=timings,
-                          diagnostics=diagnostics)
+                          diagnostics=diagnostics,
+                          observed=None if completion is None else completion.observed,
+                          W_completed=None if completion is None else completion.W,
+                          completion=completion)
 
 
 class _nullcontext:

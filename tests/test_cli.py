@@ -185,7 +185,7 @@ def _bad_inputs(tmp_path, seq, good):
         "W strings": (["run", _write(tmp_path, "ws.npz", W=np.array([["a"] * 5] * 4),
                                      K=1)], "numeric"),
         "W nan": (["run", _write(tmp_path, "nan.npz", W=np.full((10, 6), np.nan), K=1)],
-                  "NaN"),
+                  "observes 0 points"),
         "W 1-D": (["run", _write(tmp_path, "w1.npz", W=np.zeros(10), K=1)], "(2F, P)"),
         "W constant": (["run", _write(tmp_path, "wc.npz", W=np.ones((10, 6)), K=1)],
                        "constant"),

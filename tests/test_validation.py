@@ -41,8 +41,9 @@ def test_bad_shapes(W, message):
 def test_non_finite(seq, value):
     W = seq.W.copy()
     W[3, 4] = value
-    with pytest.raises(ValueError, match="NaN or infinite"):
-        nrsfm.reconstruct(W, 2)
+    # NaN means "not observed": refused with missing="error" (completed by default)
+    with pytest.raises(ValueError, match="NaN or infinite|infinite|missing='error'"):
+        nrsfm.reconstruct(W, 2, missing="error")
 
 
 @pytest.mark.parametrize("K, message", [(0, "at least 1"), (-2, "at least 1"),

@@ -1,0 +1,159 @@
+"""Benchmark tasks, executors (local, Dask), resumable cache, plan, report, CLI."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+import data_tools as dt
+from nrsfm.experiments import (Task, build_plan, choose_K, load_sequence, run_task,
+                               run_tasks, unique_tasks)
+from nrsfm.experiments import executors
+
+SEQS = ["synthetic-1", "synthetic-2"]
+
+
+def _tiny_tasks():
+    ts = [Task.make("mocap", sequence=s, method=m, K=2, seed=0, data=None)
+          for s in SEQS for m in ("organic", "bmm")]
+    ts += [Task.make("noise", sequence="synthetic-1", method="organic", sigma=0.05, run=r,
+                     seed=0, data=None) for r in range(2)]
+    ts += [Task.make("missing", sequence="synthetic-3-40-24-2", method="organic",
+                     pattern="uniform", fraction=0.2, seed=0, data=None)]
+    return ts
+
+
+def _strip_times(rows):
+    return [{k: v for k, v in r.items() if not k.startswith("t_")} for r in rows]
+
+
+def test_task_key_is_stable_and_parameter_dependent():
+    a = Task.make("mocap", sequence="pickup", method="bmm", K=12)
+    b = Task.make("mocap", K=12, method="bmm", sequence="pickup")
+    c = Task.make("mocap", sequence="pickup", method="bmm", K=11)
+    assert a == b and a.key == b.key and a.key != c.key
+    assert a.key.startswith("mocap-")
+    with pytest.raises(ValueError, match="unknown experiment"):
+        Task.make("nope", sequence="pickup")
+
+
+def test_load_sequence_synthetic_names():
+    s = load_sequence("synthetic-3-40-24-2")
+    assert (s.n_frames, s.n_points, s.K) == (40, 24, 2)
+    assert load_sequence("synthetic-5").W.shape == (60, 15)
+    with pytest.raises(ValueError, match="synthetic-SEED"):
+        load_sequence("synthetic-1-2-3-4-5")
+
+
+def test_local_processes_match_in_process(tmp_path):
+    tasks = _tiny_tasks()
+    serial = run_tasks(tasks, cache_dir=None, workers=1)
+    pooled = run_tasks(tasks, cache_dir=tmp_path / "c", workers=2)
+    assert _strip_times(serial) == _strip_times(pooled)
+    assert len(list((tmp_path / "c").glob("*.json"))) == len(tasks)
+    assert not list((tmp_path / "c").glob("*.tmp"))
+
+
+def test_dask_local_cluster_matches_local_executor(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    tasks = _tiny_tasks()[:3]
+    local = run_tasks(tasks, workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        on_dask = run_tasks(tasks, cache_dir=tmp_path / "d", scheduler=client)
+        by_address = run_tasks(tasks, scheduler=cluster.scheduler_address)
+    assert _strip_times(on_dask) == _strip_times(local) == _strip_times(by_address)
+
+
+def test_interrupted_sweep_resumes_without_redoing(tmp_path, monkeypatch):
+    tasks = _tiny_tasks()
+    calls = []
+    real = executors.run_task
+
+    def counting(task):
+        calls.append(task.key)
+        return real(task)
+
+    monkeypatch.setattr(executors, "run_task", counting)
+
+    class Stop(Exception):
+        pass
+
+    def interrupt(task, rows, cached):
+        if len(calls) == 3:
+            raise Stop                                    # as if killed after 3 tasks
+
+    with pytest.raises(Stop):
+        run_tasks(tasks, cache_dir=tmp_path, workers=1, progress=interrupt)
+    assert len(calls) == 3 and len(list(tmp_path.glob("*.json"))) == 3
+    calls.clear()
+    seen = []
+    rows = run_tasks(tasks, cache_dir=tmp_path, workers=1,
+                     progress=lambda t, r, cached: seen.append(cached))
+    assert len(calls) == len(tasks) - 3                   # only the unfinished ones
+    assert seen.count(True) == 3
+    assert _strip_times(rows) == _strip_times(run_tasks(tasks, workers=1))
+
+
+def test_corrupt_or_foreign_cache_file_is_rerun(tmp_path):
+    t = _tiny_tasks()[0]
+    (tmp_path / f"{t.key}.json").write_text("{not json")
+    assert executors.load_cached(t, tmp_path) is None
+    other = _tiny_tasks()[1]
+    (tmp_path / f"{t.key}.json").write_text(json.dumps(
+        dict(experiment=other.experiment, params=other.params_json, rows=[])))
+    assert executors.load_cached(t, tmp_path) is None
+    run_tasks([t], cache_dir=tmp_path)
+    assert executors.load_cached(t, tmp_path)[0]["sequence"] == "synthetic-1"
+
+
+def test_run_tasks_rejects_bad_arguments():
+    with pytest.raises(ValueError, match="workers"):
+        run_tasks([], workers=0)
+    t = _tiny_tasks()[0]
+    with pytest.raises(ValueError, match="duplicate"):
+        run_tasks([t, t])
+
+
+def test_plan_covers_every_experiment():
+    plan = build_plan(sequences=["synthetic-1"], quick=True)
+    assert set(plan) == {"mocap", "pseudo_inverse", "rotation_ablation", "noise", "missing",
+                         "n_ablation", "k_sweep", "auto_k"}
+    tasks = unique_tasks(plan)
+    assert len({t.key for t in tasks}) == len(tasks)
+    full = build_plan(sequences=["synthetic-1"], only=["noise"])
+    assert len(full["noise"]) == 6 * 3 * 10                  # sigmas x methods x runs
+    with pytest.raises(ValueError, match="unknown experiment"):
+        build_plan(only=["tables"], sequences=["synthetic-1"])
+
+
+def test_choose_K_on_synthetic_sequences():
+    for K in (1, 2, 3, 4):
+        for noise in (0.0, 0.05):                    # Gavish-Donoho handles the noise
+            seq = dt.make_synthetic(F=80, P=40, K=K, seed=K, noise=noise)
+            assert choose_K(seq.W)[0] == K
+    Wm, _ = dt.drop_tracks(seq.W, 0.2, seed=0)
+    assert choose_K(Wm)[0] == 4                      # missing entries: completed first
+    with pytest.raises(ValueError, match="relative_floor"):
+        choose_K(seq.W, relative_floor=2)
+
+
+@pytest.mark.filterwarnings("ignore:the completion of W stopped")   # tracking, F = 30
+def test_benchmark_command_writes_tables_and_plots(tmp_path):
+    from nrsfm.cli import main
+
+    out = tmp_path / "bench"
+    rc = main(["benchmark", "--out", str(out), "--sequences", "synthetic-1", "--quick",
+               "--only", "mocap", "missing", "--quiet"])
+    assert rc == 0
+    for name in ("mocap.md", "mocap.csv", "missing.md", "missing_curve.png", "README.md"):
+        assert (out / name).is_file(), name
+    text = (out / "mocap.md").read_text()
+    assert "| synthetic-1 | 2 | organic |" in text
+    n_cache = len(list((out / "cache").glob("*.json")))
+    rc = main(["benchmark", "--out", str(out), "--sequences", "synthetic-1", "--quick",
+               "--only", "mocap", "missing", "--quiet"])
+    assert len(list((out / "cache").glob("*.json"))) == n_cache
+    assert f"({n_cache} from the cache)" in (out / "README.md").read_text()
