@@ -256,7 +256,11 @@ def cmd_run(args):
 
     inp = Path(args.input).expanduser()
     data = _load_npz(inp)
-    W = check_measurements(_numeric("W", data["W"]))
+    W = check_measurements(_numeric("W", data["W"]), allow_missing=True)
+    if np.isnan(W).any():                 # NaN = not observed: enough observations?
+        from .completion import observed_mask
+
+        observed_mask(W)
     F, P = W.shape[0] // 2, W.shape[1]
     if args.K is not None:
         K = args.K
