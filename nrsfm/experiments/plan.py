@@ -22,8 +22,9 @@ EXPERIMENTS = {
     "auto_k": "automatic K from W alone beside the paper's K",
 }
 
-_FULL = dict(methods=("organic", "bmm", "wnn"), noise_sigmas=(0.01, 0.05, 0.1, 0.15, 0.2, 0.25),
-             noise_runs=10, noise_methods=("organic", "bmm", "wnn"),
+_FULL = dict(methods=("organic", "organic-admm", "bmm", "wnn"),
+             noise_sigmas=(0.01, 0.05, 0.1, 0.15, 0.2, 0.25),
+             noise_runs=10, noise_methods=("organic", "organic-admm", "bmm", "wnn"),
              missing_methods=("organic", "bmm"), missing_patterns=("uniform", "tracking"),
              missing_fraction=0.3, curve_fractions=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
              curve_methods=("organic", "bmm"), Ns=(0, 1, 2, 3, 4, 5),
@@ -32,7 +33,8 @@ _FULL = dict(methods=("organic", "bmm", "wnn"), noise_sigmas=(0.01, 0.05, 0.1, 0
              missing_sequences=None,
              noise_sequence="pickup", curve_sequence="pickup")
 
-_QUICK = dict(_FULL, methods=("organic", "bmm"), noise_sigmas=(0.01, 0.1, 0.25),
+_QUICK = dict(_FULL, methods=("organic", "bmm"), noise_methods=("organic", "bmm", "wnn"),
+              noise_sigmas=(0.01, 0.1, 0.25),
               noise_runs=2, curve_fractions=(0.1, 0.3, 0.5), curve_methods=("organic",),
               missing_patterns=("uniform", "tracking"), k_span=(-4, -2, 0),
               ablation_sequences=("pickup",), sweep_sequences=("pickup",),
