@@ -124,7 +124,7 @@ def test_plan_covers_every_experiment():
     tasks = unique_tasks(plan)
     assert len({t.key for t in tasks}) == len(tasks)
     full = build_plan(sequences=["synthetic-1"], only=["noise"])
-    assert len(full["noise"]) == 6 * 3 * 10                  # sigmas x methods x runs
+    assert len(full["noise"]) == 6 * 4 * 10                  # sigmas x methods x runs
     with pytest.raises(ValueError, match="unknown experiment"):
         build_plan(only=["tables"], sequences=["synthetic-1"])
 
