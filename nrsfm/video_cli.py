@@ -51,8 +51,9 @@ def reconstruct_tracks(W, K=1, *, missing="auto", **kw):
     K : int
         Number of shape bases (dense input: the paper's K = 1).
     missing : {"auto", "complete"}
-        ``auto``: pass every track, NaN included, to :func:`nrsfm.reconstruct`; if it
-        rejects NaN (no missing-data support), fall back to the complete tracks.
+        ``auto``: pass every track seen in at least 2 frames, NaN included, to
+        :func:`nrsfm.reconstruct` (missing data, completed there); if the observations are
+        too sparse for it (a frame with too few tracks), fall back to the complete tracks.
         ``complete``: use the complete tracks only.
     **kw
         Passed to :func:`nrsfm.reconstruct` (``method``, ``seed``, ``progress``, ...).
@@ -80,11 +81,13 @@ def reconstruct_tracks(W, K=1, *, missing="auto", **kw):
     complete = np.isfinite(A).all(axis=0)
     P = A.shape[1]
     if missing == "auto" and not complete.all():
+        # a track seen in fewer than 2 frames has no depth to recover: not used
+        seen = np.isfinite(A).reshape(A.shape[0] // 2, 2, P).all(axis=1).sum(axis=0) >= 2
         try:
-            res = reconstruct(A, K, **kw)
-            return VideoReconstruction(res, np.ones(P, bool), P, int(complete.sum()), True)
-        except ValueError as exc:
-            if "NaN" not in str(exc):
+            res = reconstruct(A[:, seen], K, **kw)
+            return VideoReconstruction(res, seen, P, int(complete.sum()), True)
+        except ValueError as exc:        # e.g. a frame that observes too few tracks
+            if not any(w in str(exc) for w in ("NaN", "observe", "too sparse")):
                 raise
     n = int(complete.sum())
     if n < max(3, 3 * int(K)):
