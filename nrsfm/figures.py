@@ -101,32 +101,40 @@ def cameras_figure(result, sequence=None, content=None, title=None):
     return fig
 
 
+_HISTORY_TITLES = {"cost": "cost (Eq. 7 / 8 / 10 by prior)",
+                   "data_term": "data term 1/2||W-RX||^2",
+                   "residual": "residual max|X# - Phi(X)|", "rho": "penalty rho",
+                   "grad_norm": "relative gradient norm"}
+
+
 def admm_figure(results, labels=None, title=None):
-    """ADMM history (cost, data term, residual, rho) of one or several runs."""
+    """Shape-stage history of one or several runs: cost, data term and, for the ADMM,
+    residual and rho, for the bilinear solver the relative gradient norm (log axes)."""
     plt = _plt()
     if not isinstance(results, (list, tuple)):
         results = [results]
     labels = labels or [r.method for r in results]
-    fig, axes = plt.subplots(1, 4, figsize=(14, 3.3))
+    hists = [getattr(getattr(r, "shape_stage", r), "history", None) or {} for r in results]
+    keys = [k for k in _HISTORY_TITLES if any(k in h for h in hists)] or ["cost"]
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.5 * len(keys), 3.3), squeeze=False)
+    axes = axes[0]
     floor = np.inf
-    for res, lab in zip(results, labels):
-        st = getattr(res, "shape_stage", res)
-        hist = getattr(st, "history", None) or {}
-        for ax, key in zip(axes, ("cost", "data_term", "residual", "rho")):
-            if key in hist:
-                ax.semilogy(np.asarray(hist[key]), label=lab)
+    for hist, lab in zip(hists, labels):
+        for ax, key in zip(axes, keys):
+            v = np.asarray(hist.get(key, []), float)
+            if (v > 0).any():                       # exact fits reach 0: not on a log axis
+                ax.semilogy(np.where(v > 0, v, np.nan), label=lab)
         dt = np.asarray(hist.get("data_term", []), float)[1:]
         if (dt > 0).any():
             floor = min(floor, dt[dt > 0].min())
-    if np.isfinite(floor):      # the start (X_init) fits W exactly: do not let ~1e-30 rule
-        axes[1].set_ylim(bottom=floor / 10)
-    for ax, key in zip(axes, ("cost (Eq. 7 / 8 / 10 by prior)", "data term 1/2||W-RX||^2",
-                              "residual max|X# - Phi(X)|", "penalty rho")):
-        ax.set_title(key, fontsize=9)
-        ax.set_xlabel("ADMM iteration")
+    if np.isfinite(floor) and "data_term" in keys:  # the start fits W exactly: 1e-30 not shown
+        axes[keys.index("data_term")].set_ylim(bottom=floor / 10)
+    for ax, key in zip(axes, keys):
+        ax.set_title(_HISTORY_TITLES[key], fontsize=9)
+        ax.set_xlabel("iteration")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.suptitle(title or "shape stage: ADMM history", fontsize=10)
+    fig.suptitle(title or "shape stage: history", fontsize=10)
     fig.tight_layout()
     return fig
 

@@ -51,7 +51,7 @@ import nrsfm
 from nrsfm.corrective import (constraint_matrix, corrective_triplets, solution_space,
                               triplet_cost)
 from nrsfm.measurement import factorize
-from nrsfm.recording import camera_alignment, output_path, show_recording
+from nrsfm.recording import camera_alignment, output_path, show_recording, shown_path
 
 
 def triplet_cameras(G, M_hat):
@@ -261,5 +261,5 @@ if mocap_rows is not None:
     rec.log("/pickup/triplet_e_R", rr.BarChart(mocap_rows[1]), static=True)
 rec.flush()
 rec.disconnect()
-print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB)")
+print(f"wrote {shown_path(path)} ({path.stat().st_size / 1e3:.0f} kB)")
 show_recording(path)

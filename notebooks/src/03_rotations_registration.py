@@ -38,7 +38,7 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.measurement import factorize
-from nrsfm.recording import output_path, save_recording, show_recording
+from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 from nrsfm.rotations import (FLIP, MIRROR, STRATEGIES, estimate_rotations, filter_rotations,
                              register_rotations, resolve_depth_signs, rotation_angle,
                              rotations_from_triplets)
@@ -221,5 +221,5 @@ if ("pickup", "organic") in results:
 # %%
 result = nrsfm.reconstruct(noisy.W, noisy.K)
 rrd = save_recording(result, output_path("03_rotations_registration.rrd"), noisy)
-print(f"wrote {rrd} ({rrd.stat().st_size / 1e6:.2f} MB)")
+print(f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB)")
 show_recording(rrd)

@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 
 import data_tools
 import nrsfm
-from nrsfm.recording import build_recording, output_path, show_recording
+from nrsfm.recording import build_recording, output_path, show_recording, shown_path
 from nrsfm.rotations import (average_rotations, chordal_mean, project_to_so3,
                              resolve_depth_signs, rotation_angle)
 
@@ -228,5 +228,5 @@ path = output_path("04_rotation_averaging.rrd")
 rec.save(path)
 rec.flush()
 rec.disconnect()
-print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+print(f"wrote {shown_path(path)} ({path.stat().st_size / 1e6:.2f} MB)")
 show_recording(path)

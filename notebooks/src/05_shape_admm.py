@@ -52,7 +52,7 @@ import numpy as np
 import data_tools
 import nrsfm
 from nrsfm import figures
-from nrsfm.recording import output_path, save_recording, show_recording
+from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 from nrsfm.shape import (optimize_shapes, phi, pseudo_inverse_shapes, psvt, shape_weights)
 
 # %% [markdown]
@@ -330,5 +330,5 @@ else:
 
 # %%
 rrd = save_recording(organic, output_path("05_shape_admm.rrd"), seq)
-print(f"wrote {rrd} ({rrd.stat().st_size / 1e6:.2f} MB)")
+print(f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB)")
 show_recording(rrd)

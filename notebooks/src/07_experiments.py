@@ -35,7 +35,7 @@ from pathlib import Path
 from IPython.display import Image, Markdown, display
 
 from nrsfm.experiments import EXPERIMENTS, build_plan, run_benchmark, unique_tasks
-from nrsfm.recording import output_path
+from nrsfm.recording import output_path, shown_path
 
 HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
     Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()
@@ -71,7 +71,7 @@ t0 = time.perf_counter()
 res = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY, sequences=SEQUENCES,
                     quick=True, workers=2, progress=False, overrides=OVERRIDES)
 print(f"{res['n_tasks']} tasks, {res['n_cached']} cached, {time.perf_counter() - t0:.1f} s;"
-      f" wrote {len(res['files'])} files to {OUT}")
+      f" wrote {len(res['files'])} files to {shown_path(OUT)}")
 again = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY,
                       sequences=SEQUENCES, quick=True, workers=1, progress=False,
                       overrides=OVERRIDES)

@@ -31,7 +31,7 @@ import numpy as np
 
 from data_tools.synthetic_video import make_video, tracking_errors
 from data_tools.video import track_dense, track_sparse
-from nrsfm.recording import output_path, show_recording
+from nrsfm.recording import output_path, show_recording, shown_path
 from nrsfm.recording_video import make_video_blueprint, save_video_recording
 from nrsfm.video_cli import reconstruct_tracks
 
@@ -154,7 +154,7 @@ used[np.flatnonzero(seq.extra["valid"])[vr.used]] = True
 path = output_path("08_video_to_3d.rrd")
 info = save_video_recording(path, video.frames, dense, vr.result, used,
                             shapes_gt=seq.shapes[:, :, vr.used], max_points_3d=3000)
-print(f"{info['path']}: {info['bytes'] / 1e6:.2f} MB, {info['seconds']:.2f} s, "
+print(f"{shown_path(info['path'])}: {info['bytes'] / 1e6:.2f} MB, {info['seconds']:.2f} s, "
       f"{info['points_3d']} points in 3D, {info['points_2d']} tracks drawn")
 assert info["bytes"] < 5e6
 show_recording(path, blueprint=make_video_blueprint(True))
