@@ -3,7 +3,7 @@
     python tools/render_figures.py --out docs/figures [--mocap pickup] [--no-mocap]
 
 On the built-in synthetic sequence (``data_tools.default_sequence()``): shapes beside ground
-truth, camera trajectory, ADMM cost curves (organic N = 1 vs weighted N = 0 vs nuclear
+truth, camera trajectory, shape-stage history (organic vs weighted vs nuclear
 norm), singular values. With ``NRSFM_DATA`` set, the same for one MoCap sequence.
 
 The full organic pipeline runs (estimated rotations).
@@ -53,15 +53,15 @@ def render(seq, out, tag):
         save(figures.cameras_figure(res, seq, content=content,
                                     title=f"{seq.name}: camera trajectory "
                                           "(estimated rotations)"), "cameras")
-    runs, labels = [res], ["organic (PSVT, N=1)"]
-    for method, lab in (("wnn", "weighted NN (N=0)"), ("bmm", "nuclear norm (BMM)")):
+    runs, labels = [res], ["organic (first singular value free)"]
+    for method, lab in (("wnn", "weighted nuclear norm"), ("bmm", "nuclear norm (BMM)")):
         if seq.rotations is not None:       # same rotations for all three: compare priors
             runs.append(nrsfm.reconstruct(seq.W, seq.K, method=method,
                                           rotations=res.rotations))
             labels.append(lab)
     errs = [r.errors(seq.shapes)["e3d"] for r in runs]
     save(figures.admm_figure(runs, [f"{lab}: e3d {e:.3g}" for lab, e in zip(labels, errs)],
-                             title=f"{seq.name}: shape-stage ADMM history, same rotations"),
+                             title=f"{seq.name}: shape-stage history (default solver), same rotations"),
          "admm")
     sv = content.singular_values
     save(figures.singular_values_figure([sv["W"], sv["X_init"]],
