@@ -253,6 +253,31 @@ def _neighbours(pts0, k):
     return idx[:, 1:]
 
 
+def _inside(q, W, H):
+    """(n,) bool: the (n, 2) pixel positions lie inside a W x H image."""
+    return (q[:, 0] >= 0) & (q[:, 0] <= W - 1) & (q[:, 1] >= 0) & (q[:, 1] <= H - 1)
+
+
+def _advance(f, idx, q, e, bad, nxt, err, active, lost_at):
+    """Move tracks ``idx`` to ``q`` (forward-backward error ``e``); an active track that
+    fails a check (``bad``) is lost at frame ``f``. Updates the arrays in place."""
+    nxt[idx] = q
+    err[idx] = e
+    newly = active[idx] & bad
+    lost_at[idx[newly]] = f
+    active[idx[newly]] = False
+
+
+def _check_neighbours(f, pts0, nxt, active, lost_at, nbrs, neighbour_px):
+    """Lose, at frame ``f``, active tracks farther than ``neighbour_px`` from where their
+    neighbours' motion puts them (identity swaps that pass the other checks)."""
+    if nbrs is None or not active.any():
+        return
+    newly = active & (_neighbour_residual(pts0, nxt, active, nbrs) > neighbour_px)
+    lost_at[newly] = f
+    active[newly] = False
+
+
 def _neighbour_residual(pts0, cur, alive, nbrs):
     """Distance of each point in ``cur`` from the position predicted by the affine map
     (first frame -> now) fitted to its live neighbours; NaN with fewer than 3 of them."""
@@ -358,19 +383,10 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
             b, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, q, None, **lk)
             e = np.linalg.norm((b - p).reshape(-1, 2), axis=1)
             q = q.reshape(-1, 2)
-            inside = (q[:, 0] >= 0) & (q[:, 0] <= W - 1) & (q[:, 1] >= 0) & (q[:, 1] <= H - 1)
-            bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~inside | ~(e <= fb_threshold)
-                   | ~(res.ravel() <= max_residual))
-            nxt[idx] = q
-            err[idx] = e
-            newly = active[idx] & bad
-            lost_at[idx[newly]] = f
-            active[idx[newly]] = False
-        if nbrs is not None and active.any():
-            r = _neighbour_residual(pts0, nxt, active, nbrs)
-            newly = active & (r > neighbour_px)
-            lost_at[newly] = f
-            active[newly] = False
+            bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~_inside(q, W, H)
+                   | ~(e <= fb_threshold) | ~(res.ravel() <= max_residual))
+            _advance(f, idx, q, e, bad, nxt, err, active, lost_at)
+        _check_neighbours(f, pts0, nxt, active, lost_at, nbrs, neighbour_px)
         history.append(nxt.copy())
         fb.append(err)
         pts, prev = nxt, cur
@@ -509,18 +525,9 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
                                borderMode=cv2.BORDER_REPLICATE)
             diff = cv2.blur(cv2.absdiff(prev, warped).astype(np.float32), (window, window))
             res = _sample(diff, p)
-            inside = (q[:, 0] >= 0) & (q[:, 0] <= W - 1) & (q[:, 1] >= 0) & (q[:, 1] <= H - 1)
-            bad = ~inside | ~(e <= fb_threshold) | ~(res <= max_residual)
-            nxt[idx] = q
-            err[idx] = e
-            newly = active[idx] & bad
-            lost_at[idx[newly]] = f
-            active[idx[newly]] = False
-        if nbrs is not None and active.any():
-            r = _neighbour_residual(pts0, nxt, active, nbrs)
-            newly = active & (r > neighbour_px)
-            lost_at[newly] = f
-            active[newly] = False
+            bad = ~_inside(q, W, H) | ~(e <= fb_threshold) | ~(res <= max_residual)
+            _advance(f, idx, q, e, bad, nxt, err, active, lost_at)
+        _check_neighbours(f, pts0, nxt, active, lost_at, nbrs, neighbour_px)
         history.append(nxt.copy())
         fb.append(err)
         pts, prev = nxt, cur
