@@ -155,6 +155,7 @@ def cmd_video(args):
     print(tracks.summary())
     K = 1 if args.K is None else args.K
     vr = reconstruct_tracks(tracks.W, K, method=args.method, seed=args.seed,
+                            missing="complete" if args.complete_tracks else "auto",
                             progress=not args.quiet)
     how = ("all tracks (missing data)" if vr.missing_data else
            f"the {vr.n_complete} complete tracks of {vr.n_tracks}")
@@ -212,6 +213,10 @@ def add_video_commands(subparsers):
     p.add_argument("--method", choices=sorted(METHODS), default="organic",
                    help="pipeline (default: organic)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--complete-tracks", action="store_true",
+                   help="reconstruct only the tracks observed in every frame (default: every "
+                        "track seen in 2+ frames, lost entries completed as missing data; "
+                        "slower on dense tracks)")
     p.add_argument("--rrd", metavar="PATH", help="write a Rerun recording (.rrd)")
     p.add_argument("-o", "--output", help="write tracks, rotations and shapes (.npz)")
     p.set_defaults(func=cmd_video)
