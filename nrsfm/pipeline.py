@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -244,38 +245,36 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         raise ValueError(f"missing must be 'complete' or 'error'; got {missing!r}")
     W = check_measurements(W, allow_missing=True)
     F, P = W.shape[0] // 2, W.shape[1]
-    completion = None
-    t_completion = None
-    if np.isnan(W).any():
-        if missing == "error":
-            n_miss = int(np.isnan(W).reshape(F, 2, P).any(axis=1).sum())
-            raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
-                             f"masked) and missing='error'; use missing='complete' to "
-                             f"fill them by low-rank completion")
-        from .completion import complete_measurements
-
-        t0 = time.perf_counter()
-        limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
-        with limit:
-            completion = complete_measurements(W)
-        t_completion = time.perf_counter() - t0
-        if not completion.converged:
-            import warnings
-
-            warnings.warn(f"the completion of W stopped at its iteration cap "
-                          f"({completion.n_iter}) before converging: the filled entries "
-                          f"may be inaccurate", RuntimeWarning, stacklevel=2)
-        W = completion.W
+    missing_entries = np.isnan(W)
+    if missing_entries.any() and missing == "error":
+        n_miss = int(missing_entries.reshape(F, 2, P).any(axis=1).sum())
+        raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
+                         f"masked) and missing='error'; use missing='complete' to "
+                         f"fill them by low-rank completion")
+    # every input check before any computation (the completion can take a while)
     K = check_K(K, F, P)
     K = check_centred_rank(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
     say = _progress_printer(progress)
     rotation_strategy, prior = METHODS[method]
-    timings = {} if t_completion is None else {"completion": t_completion}
+    timings = {}
+    completion = None
 
     limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
     with limit:
+        if missing_entries.any():
+            from .completion import complete_measurements
+
+            t0 = time.perf_counter()
+            completion = complete_measurements(W)
+            timings["completion"] = time.perf_counter() - t0
+            if not completion.converged:
+                warnings.warn(f"the completion of W stopped at its iteration cap "
+                              f"({completion.n_iter}) before converging: the filled "
+                              f"entries may be inaccurate", RuntimeWarning, stacklevel=2)
+            W = completion.W
+
         t0 = time.perf_counter()
         # Any finite W: divide by an exact power of two near max|W| first, so that
         # centring, norms and SVD neither overflow (|W| ~ 1e153) nor underflow (~ 1e-165).
