@@ -112,11 +112,11 @@ def dense_tracks(P, F, seed):
 def scale_table(args):
     import rerun  # noqa: F401  (imported here so that its ~3 s import is not timed below)
 
-    from nrsfm.measurement import centre_rows, factorize
+    from nrsfm.stages.measurement import centre_rows, factorize
     from nrsfm.recording_video import save_video_recording
-    from nrsfm.rotations import estimate_rotations
+    from nrsfm.stages.rotations import estimate_rotations
     from nrsfm.scale import normalization_scale
-    from nrsfm.shape import pseudo_inverse_shapes, solve_shapes
+    from nrsfm.stages.shape import pseudo_inverse_shapes, solve_shapes
 
     P, F = args.points, args.frames
     v, pix, cam = dense_tracks(P, F, args.seed)
@@ -127,7 +127,7 @@ def scale_table(args):
     s = normalization_scale(Wc)
     Wn = Wc / s
     fact, t, m = _measure(lambda: factorize(Wn, 1))
-    rows.append(("factorisation: nrsfm.measurement.factorize (+ residual)", t, m))
+    rows.append(("factorisation: nrsfm.stages.measurement.factorize (+ residual)", t, m))
     _, t, m = _measure(lambda: np.linalg.svd(Wn, full_matrices=False))
     rows.append(("  for comparison: numpy thin SVD of the 2F x P W", t, m))
 

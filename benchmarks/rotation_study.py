@@ -1,7 +1,7 @@
 """Rotation-stage ablation on the MoCap benchmark: e_R and e3d per rotation strategy.
 
 For each sequence (the paper's K), each rotation strategy of
-:func:`nrsfm.rotations.estimate_rotations` is run on the pipeline's own ``M_hat`` (same
+:func:`nrsfm.stages.rotations.estimate_rotations` is run on the pipeline's own ``M_hat`` (same
 centring, scale and factorisation as :func:`nrsfm.reconstruct`); its rotations are then
 handed to the same shape stage (``nrsfm.reconstruct(W, K, rotations=R)``, organic prior)
 so that e3d isolates the rotations. Ground-truth rotations are added where they exist.
@@ -34,7 +34,7 @@ ROTATION_GT = ("pickup", "yoga", "stretch", "drink")
 
 def pipeline_M_hat(W, K):
     """``M_hat`` exactly as :func:`nrsfm.reconstruct` computes it."""
-    from nrsfm.measurement import centre_rows, factorize
+    from nrsfm.stages.measurement import centre_rows, factorize
     from nrsfm.scale import normalization_scale
 
     Wc, _ = centre_rows(W)
@@ -54,7 +54,7 @@ def run(names, strategies, data=None, shape=True, seed=0, options=None, say=prin
         e3d_repeats=1, perturbation=1e-4):
     import data_tools
     import nrsfm
-    from nrsfm.rotations import estimate_rotations
+    from nrsfm.stages.rotations import estimate_rotations
 
     rows = []
     for name in names:

@@ -49,8 +49,8 @@ import nrsfm.scale
 from nrsfm.metrics import e3d, rotation_error
 from nrsfm.published import published_value
 from nrsfm.scale import normalization_scale
-from nrsfm.shape import optimize_shapes, solve_shapes
-from nrsfm.shape_bilinear import closed_form_shapes
+from nrsfm.stages.shape import optimize_shapes, solve_shapes
+from nrsfm.stages.shape.bilinear import closed_form_shapes
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
 SOLVERS = ("admm", "bilinear")

@@ -1,13 +1,19 @@
 """nrsfm: non-rigid structure from motion by matrix factorisation with organic priors.
 
 Kumar & Van Gool, "Organic Priors in Non-Rigid Structure from Motion", ECCV 2022.
+Layers and data flow: ``docs/architecture.md``.
 """
 
 from .diagnostics import NRSfMWarning
 from .metrics import e3d, e3d_akhter, rotation_error
-from .pipeline import METHODS, Reconstruction, reconstruct
+from .pipeline import Reconstruction, reconstruct
+from .settings import (METHODS, AdmmSettings, BilinearSettings, ClosedFormSettings,
+                       MeasurementSettings, PseudoInverseSettings, RotationSettings, Settings,
+                       ShapeSettings, method_settings)
 
 __version__ = "0.1.0"
 
-__all__ = ["METHODS", "NRSfMWarning", "Reconstruction", "reconstruct", "e3d", "e3d_akhter",
-           "rotation_error", "__version__"]
+__all__ = ["METHODS", "AdmmSettings", "BilinearSettings", "ClosedFormSettings",
+           "MeasurementSettings", "NRSfMWarning", "PseudoInverseSettings", "Reconstruction",
+           "RotationSettings", "Settings", "ShapeSettings", "e3d", "e3d_akhter",
+           "method_settings", "reconstruct", "rotation_error", "__version__"]

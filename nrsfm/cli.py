@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._validation import check_K, check_measurements, check_rotations, check_shapes
+from .validation import check_K, check_measurements, check_rotations, check_shapes
 from .io import atomic_output, check_output_path, save_npz
 from .pipeline import METHODS, reconstruct
-from .shape import SHAPE_SOLVERS
+from .stages.shape import SHAPE_SOLVERS
 from .video_cli import add_video_commands
 
 EXIT_ERROR = 1
@@ -258,7 +258,7 @@ def cmd_run(args):
     data = _load_npz(inp)
     W = check_measurements(_numeric("W", data["W"]), allow_missing=True)
     if np.isnan(W).any():                 # NaN = not observed: enough observations?
-        from .completion import observed_mask
+        from .stages.completion import observed_mask
 
         observed_mask(W)
     F, P = W.shape[0] // 2, W.shape[1]

@@ -44,9 +44,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .noise import noise_from_singular_values
+
 __all__ = ["NRSfMWarning", "Diagnostics", "THRESHOLDS", "RANK_RTOL", "RANK_GAP_MIN",
            "CONDITION_MAX", "COST_RATIO_MAX", "CAMERA_SPREAD_MIN_DEG", "KEPT_MIN", "SIGN_FRACTION_MAX",
-           "noise_level", "predicted_triplet_cost", "numerical_rank", "diagnose"]
+           "predicted_triplet_cost", "numerical_rank", "diagnose"]
 
 #: singular values below ``RANK_RTOL * s_1`` count as zero
 RANK_RTOL = 1e-8
@@ -129,20 +131,6 @@ def numerical_rank(singular_values, rtol=RANK_RTOL):
     return int(np.sum(s > rtol * s[0]))
 
 
-def noise_level(singular_values, shape, K):
-    """Per-entry noise standard deviation of W implied by its singular values beyond 3K.
-
-    ``sigma^2 = sum_{i > 3K} s_i^2 / ((2F - 3K)(P - 1 - 3K))`` (the residual of the rank-3K
-    fit spread over its degrees of freedom; centring takes one column's worth). Model error
-    (a shape not exactly of rank K) counts as noise here.
-    """
-    s = np.asarray(singular_values, float)
-    r = 3 * K
-    rows, cols = shape
-    dof = max(rows - r, 1) * max(cols - 1 - r, 1)
-    return float(np.sqrt(np.sum(s[r:] ** 2) / dof))
-
-
 def predicted_triplet_cost(M_hat, G, singular_values, sigma):
     """Dai's cost that noise of std ``sigma`` on W alone produces at the true triplet.
 
@@ -165,8 +153,8 @@ def predicted_triplet_cost(M_hat, G, singular_values, sigma):
 
 def _dai_cost_per_frame(Wc, K, seed=0):
     """Best Dai cost per frame of a centred measurement matrix (for the transpose test)."""
-    from .corrective import corrective_triplets
-    from .measurement import factorize
+    from .stages.corrective import corrective_triplets
+    from .stages.measurement import factorize
 
     fact = factorize(Wc / max(np.linalg.norm(Wc), 1e-300), K)
     cor = corrective_triplets(fact.M_hat, K, seed=seed, max_starts=6)
@@ -221,7 +209,7 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
     if rank >= r and cond > CONDITION_MAX:
         flags.append(f"ill-conditioned factorisation: s_1 / s_3K = {cond:.3g} > "
                      f"{CONDITION_MAX:g}")
-    sigma = noise_level(s, W.shape, K)
+    sigma = noise_from_singular_values(s, W.shape, K)
     rms = np.sqrt(np.sum(s ** 2) / (twoF * P))
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
 

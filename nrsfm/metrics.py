@@ -19,35 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import check_rotations, check_shapes, power_of_two_scale
+from .geometry import align_similarity, centre_points, procrustes_orthogonal
+from .validation import check_rotations, check_shapes, power_of_two_scale
 
-__all__ = ["camera_alignment", "e3d", "e3d_akhter", "rotation_error", "similarity_align"]
-
-
-def _centre(X):
-    return X - X.mean(axis=-1, keepdims=True)
-
-
-def similarity_align(X_est, X_gt):
-    """Per-frame similarity Procrustes of ``X_est`` onto ``X_gt`` (reflection allowed).
-
-    Parameters
-    ----------
-    X_est, X_gt : (F, 3, P) ndarray
-        Both are centred per frame first.
-
-    Returns
-    -------
-    aligned : (F, 3, P) ndarray
-        ``s_f Q_f X_est_f`` (centred) closest to the centred ``X_gt_f``.
-    """
-    A = _centre(np.asarray(X_est, float))
-    B = _centre(np.asarray(X_gt, float))
-    U, sig, Vt = np.linalg.svd(B @ A.transpose(0, 2, 1))
-    Q = U @ Vt                                      # orthogonal, reflection allowed
-    norm2 = np.einsum("fij,fij->f", A, A)
-    scale = np.where(norm2 > 0, sig.sum(axis=1) / np.where(norm2 > 0, norm2, 1.0), 0.0)
-    return scale[:, None, None] * (Q @ A)
+__all__ = ["camera_alignment", "e3d", "e3d_akhter", "rotation_error"]
 
 
 def e3d(X_est, X_gt, per_frame=False):
@@ -72,8 +47,8 @@ def e3d(X_est, X_gt, per_frame=False):
     # e3d ignores the scale of either input: bring both to max|X| in [1, 2) (exact).
     X_est = X_est / power_of_two_scale(X_est)
     X_gt = X_gt / power_of_two_scale(X_gt)
-    B = _centre(X_gt)
-    err = np.linalg.norm(B - similarity_align(X_est, X_gt), axis=(1, 2))
+    B = centre_points(X_gt)
+    err = np.linalg.norm(B - align_similarity(X_est, X_gt), axis=(1, 2))
     err = err / np.linalg.norm(B, axis=(1, 2))
     return err if per_frame else float(err.mean())
 
@@ -97,13 +72,12 @@ def e3d_akhter(X_est, X_gt, per_frame=False):
     if X_est.shape != X_gt.shape:
         raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
     p2 = power_of_two_scale(X_gt)       # a common exact rescaling changes nothing
-    B = _centre(X_gt / p2)
-    A = _centre(X_est / p2)
+    B = centre_points(X_gt / p2)
+    A = centre_points(X_est / p2)
     s = np.mean(np.std(B, axis=2))
     A, B = A / s, B / s
     # One orthogonal Q for the whole sequence: maximise trace(Q' sum_f B_f A_f').
-    U, _, Vt = np.linalg.svd(np.einsum("fip,fjp->ij", B, A))
-    A = (U @ Vt) @ A
+    A = procrustes_orthogonal(np.einsum("fip,fjp->ij", B, A)) @ A
     err = np.linalg.norm(B - A, axis=1).mean(axis=1)
     return err if per_frame else float(err.mean())
 
@@ -121,8 +95,7 @@ def camera_alignment(R_est, R_gt):
     """
     A = np.asarray(R_est, float)[:, :2]
     B = np.asarray(R_gt, float)[:, :2]
-    U, _, Vt = np.linalg.svd(np.einsum("fki,fkj->ij", A, B))
-    return U @ Vt
+    return procrustes_orthogonal(np.einsum("fki,fkj->ij", A, B))
 
 
 def rotation_error(R_est, R_gt, per_frame=False):

@@ -1,29 +1,31 @@
-"""The public entry point: ``reconstruct(W, K, method=...)``, and its result type."""
+"""The public entry point: ``reconstruct(W, K, method=...)``, and its result type.
+
+``reconstruct`` is the composition of the stages (``docs/architecture.md``), each run with
+its typed settings (:mod:`nrsfm.settings`):
+
+    W --check--> [completion] --> measure (centre, scale, rank-3K SVD)
+      --> rotations (RotationSettings) --> shape (ShapeSettings) --> diagnostics
+"""
 
 from __future__ import annotations
 
 import sys
 import time
 import warnings
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import (blas_threads, check_centred_rank, check_K, check_measurements,
-                          check_rotations, power_of_two_scale)
-from .measurement import Factorization, centre_rows, factorize
-from .scale import normalization_scale
-from .shape import pseudo_inverse_shapes, truncate_rank
+from .diagnostics import diagnose
+from .settings import METHODS, RotationAblationSettings, Settings, method_settings
+from .stages.measurement import Factorization, measure
+from .stages.rotations import estimate_rotations
+from .stages.shape import ShapeResult, solve_shape
+from .validation import (blas_threads, check_K, check_measurements, check_rotations,
+                         power_of_two_scale)
 
-__all__ = ["METHODS", "Reconstruction", "reconstruct"]
-
-#: method -> (rotation strategy, shape prior). ``None`` prior: rank-K pseudo-inverse shape.
-METHODS = {
-    "organic": ("organic", "organic"),        # all K triplets, averaged; PSVT (N = 1) WNN
-    "bmm": ("bmm", "nuclear"),                 # Dai et al.: first triplet, nuclear norm
-    "wnn": ("organic", "weighted"),           # weighted nuclear norm over all singular values
-    "pseudo_inverse": ("organic", None),      # rank-K truncated pinv(R) W
-}
+__all__ = ["METHODS", "Reconstruction", "reconstruct", "run_rotation_stage"]
 
 
 @dataclass
@@ -44,19 +46,19 @@ class Reconstruction:
     row_means : (2F,) ndarray
         What centring removed (per-frame translation).
     scale : float
-        The solvers ran on ``W / scale`` (see :mod:`nrsfm.scale`).
+        ``||W||_F``: the stages ran on ``W / scale`` (:mod:`nrsfm.stages.measurement`).
     factorization : Factorization
         Rank-3K SVD of ``W / scale`` (``M_hat``, ``B_hat``, singular values).
     rotation_stage : object or None
         The rotation stage's result (triplets G^k, per-triplet rotations R^k,
         registration, filtering, averaging), None when rotations were given.
-    shape_stage : object or None
-        The shape stage's result (X_init, weights, ADMM history), None for
-        ``method="pseudo_inverse"``.
+    shape_stage : ShapeResult
+        The shape stage's result (X_init, weights, history, objective, optimality), in the
+        units of ``W / scale``.
     X_init : (F, 3, P) ndarray
         Pseudo-inverse shape ``pinv(R) W`` in the input's units.
     params : dict
-        Every setting used.
+        Every setting used (``params["settings"]``: the typed :class:`nrsfm.settings.Settings`).
     timings : dict
         Seconds per stage.
     diagnostics : nrsfm.diagnostics.Diagnostics or None
@@ -68,7 +70,7 @@ class Reconstruction:
         Where the input had missing observations: the completed W (input units, before
         centring) that the pipeline ran on.
     completion : CompletionResult or None
-        The completion's result (:mod:`nrsfm.completion`).
+        The completion's result (:mod:`nrsfm.stages.completion`).
     """
 
     rotations: np.ndarray
@@ -81,7 +83,7 @@ class Reconstruction:
     factorization: Factorization
     X_init: np.ndarray
     rotation_stage: object = None
-    shape_stage: object = None
+    shape_stage: ShapeResult = None
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     diagnostics: object = None
@@ -175,9 +177,26 @@ def _progress_printer(progress):
     return lambda msg: None
 
 
+@contextmanager
+def _timed(timings, name):
+    t0 = time.perf_counter()
+    yield
+    timings[name] = time.perf_counter() - t0
+
+
+def run_rotation_stage(M_hat, K, settings, seed=0, progress=None):
+    """The rotation stage for production settings (:mod:`nrsfm.stages.rotations`) or
+    research settings (:func:`nrsfm.ablation.estimate_rotations_ablation`)."""
+    if isinstance(settings, RotationAblationSettings):
+        from .ablation import estimate_rotations_ablation
+
+        return estimate_rotations_ablation(M_hat, K, settings, seed, progress)
+    return estimate_rotations(M_hat, K, settings, seed, progress)
+
+
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
                 shape_options=None, shape_solver="bilinear", progress=False,
-                blas_thread_limit=1, missing="complete"):
+                blas_thread_limit=1, missing="complete", settings=None):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -189,7 +208,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P - 1)``.
     method : {"organic", "bmm", "wnn", "pseudo_inverse"}
         ``organic`` (default): all K corrective triplets, registered, filtered and
-        L1-averaged rotations; shape by partial-sum weighted nuclear norm ADMM (N = 1).
+        L1-averaged rotations; shape by the partial-sum weighted nuclear norm (N = 1),
+        minimised by ``shape_solver``.
         ``bmm``: Dai et al.'s baseline (first triplet, plain nuclear norm).
         ``wnn``: the averaged rotations with a weighted nuclear norm on every singular
         value (N = 0). ``pseudo_inverse``: rank-K truncation of ``pinv(R) W``.
@@ -197,15 +217,19 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         Known camera rotations; the rotation stage is then skipped.
     seed : int
         Seed for every random choice (results are deterministic for a given seed).
-    rotation_options, shape_options : dict, optional
-        Passed to :func:`nrsfm.rotations.estimate_rotations` and to the shape solver.
-    shape_solver : {"admm", "bilinear", "closed_form"}
+    rotation_options : dict, optional
+        Fields of :class:`nrsfm.settings.RotationSettings` (``strategy`` included), or of
+        :class:`nrsfm.settings.RotationAblationSettings` for the research variants
+        (:mod:`nrsfm.ablation`); they override the method's preset.
+    shape_options : dict, optional
+        Fields of the solver's settings (:class:`nrsfm.settings.BilinearSettings`,
+        :class:`~nrsfm.settings.AdmmSettings`, :class:`~nrsfm.settings.ClosedFormSettings`).
+    shape_solver : {"bilinear", "admm", "closed_form"}
         ``bilinear`` (default): the factored weighted nuclear norm minimised to a
-        stationary point,
-        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear`; ``admm``: the paper's
-        continuation ADMM, :func:`nrsfm.shape.optimize_shapes`; ``closed_form``: the exact
-        rank-K solution, :func:`nrsfm.shape_bilinear.closed_form_result` (no prior). See
-        ``docs/shape_stage.md`` for the measurements behind the default.
+        stationary point (:mod:`nrsfm.stages.shape.bilinear`); ``admm``: the paper's
+        continuation ADMM (:mod:`nrsfm.stages.shape.admm`); ``closed_form``: the exact
+        rank-K solution (no prior). See ``docs/shape_stage.md`` for the measurements
+        behind the default.
     progress : bool or callable
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None
@@ -214,8 +238,11 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         What to do with missing observations: NaN in W or tracks (a point counts as missing
         in a frame when either coordinate is NaN), or the mask of a
         ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
-        (:func:`nrsfm.completion.complete_measurements`) and run the pipeline on it; the
-        result keeps ``observed`` and ``W_completed``. ``error``: refuse.
+        (:func:`nrsfm.stages.completion.complete_measurements`) and run the pipeline on
+        it; the result keeps ``observed`` and ``W_completed``. ``error``: refuse.
+    settings : nrsfm.settings.Settings, optional
+        Every setting, typed (replaces ``method``, ``shape_solver``, ``missing`` and the
+        option dicts, which are then not allowed).
 
     Returns
     -------
@@ -225,24 +252,70 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     ------
     ValueError
         Bad shapes, non-finite input, K out of range (including 3K above
-        ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, bad
-        rotations; missing observations with ``missing="error"``; a frame or point with
-        too few observations to be determined (named in the message).
+        ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, solver
+        or option, bad rotations; missing observations with ``missing="error"``; a frame
+        or point with too few observations to be determined (named in the message).
 
     Warns
     -----
     nrsfm.NRSfMWarning
         When a quality signal of the run crosses its threshold (``result.diagnostics``).
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
-    from .shape import SHAPE_SOLVERS
+    solver_name = shape_solver
+    if settings is None:
+        settings = method_settings(method, shape_solver, rotation_options, shape_options,
+                                   missing)
+    else:
+        solver_name = settings.shape.solver.name
+    if not isinstance(settings, Settings) or (solver_name != shape_solver and
+                                               (rotation_options or shape_options)):
+        raise ValueError("settings must be an nrsfm.settings.Settings, given without "
+                         "rotation_options or shape_options")
+    # every input check before any computation (the completion can take a while)
+    W, K, rotations = _check_inputs(W, K, rotations, settings.measurement.missing)
+    say = _progress_printer(progress)
+    timings = {}
+    with blas_threads(blas_thread_limit) if blas_thread_limit else nullcontext():
+        completion, W = _complete(W, timings)
+        with _timed(timings, "factorize"):
+            meas = measure(W, K)
+        fact = meas.factorization
+        say(f"rank-{3 * K} factorisation of {W.shape[0]}x{W.shape[1]} W: residual "
+            f"{fact.residual:.3g}")
+        rotation_stage = None
+        if rotations is None:
+            with _timed(timings, "rotations"):
+                rotation_stage = run_rotation_stage(fact.M_hat, K, settings.rotation, seed,
+                                                    say)
+            rotations = rotation_stage.rotations
+        with _timed(timings, "shape"):
+            shape_stage = solve_shape(meas.Wn, rotations, K, settings.shape, say)
+    diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
+    diagnostics.warn(stacklevel=2)
+    params = dict(method=settings.method, K=K, seed=seed,
+                  rotation_strategy=settings.rotation.strategy,
+                  shape_prior=METHODS[settings.method][1],
+                  shape_solver=solver_name,
+                  rotation_options=dict(rotation_options or {}),
+                  shape_options=dict(shape_options or {}), scale=meas.scale,
+                  rotations_given=rotation_stage is None,
+                  missing=settings.measurement.missing, settings=settings)
+    shapes = meas.restore(shape_stage.shapes)
+    if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
+        raise ValueError(f"the shapes overflow in the input's units (max|W| = "
+                         f"{np.abs(W).max():.3g}); rescale W")
+    return Reconstruction(rotations=rotations, shapes=shapes, method=settings.method, K=K,
+                          W=meas.W, row_means=meas.row_means, scale=meas.scale,
+                          factorization=fact, X_init=meas.restore(shape_stage.X_init),
+                          rotation_stage=rotation_stage, shape_stage=shape_stage,
+                          params=params, timings=timings, diagnostics=diagnostics,
+                          observed=None if completion is None else completion.observed,
+                          W_completed=None if completion is None else completion.W,
+                          completion=completion)
 
-    if shape_solver not in SHAPE_SOLVERS:
-        raise ValueError(f"unknown shape_solver {shape_solver!r}; expected one of "
-                         f"{list(SHAPE_SOLVERS)}")
-    if missing not in ("complete", "error"):
-        raise ValueError(f"missing must be 'complete' or 'error'; got {missing!r}")
+
+def _check_inputs(W, K, rotations, missing):
+    """(W as (2F, P) with NaN where missing, K, rotations as (F, 3, 3) or None)."""
     W = check_measurements(W, allow_missing=True)
     F, P = W.shape[0] // 2, W.shape[1]
     missing_entries = np.isnan(W)
@@ -251,95 +324,22 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
                          f"masked) and missing='error'; use missing='complete' to "
                          f"fill them by low-rank completion")
-    # every input check before any computation (the completion can take a while)
     K = check_K(K, F, P)
-    K = check_centred_rank(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)
-    say = _progress_printer(progress)
-    rotation_strategy, prior = METHODS[method]
-    timings = {}
-    completion = None
-
-    limit = blas_threads(blas_thread_limit) if blas_thread_limit else _nullcontext()
-    with limit:
-        if missing_entries.any():
-            from .completion import complete_measurements
-
-            t0 = time.perf_counter()
-            completion = complete_measurements(W)
-            timings["completion"] = time.perf_counter() - t0
-            if not completion.converged:
-                warnings.warn(f"the completion of W stopped at its iteration cap "
-                              f"({completion.n_iter}) before converging: the filled "
-                              f"entries may be inaccurate", RuntimeWarning, stacklevel=2)
-            W = completion.W
-
-        t0 = time.perf_counter()
-        # Any finite W: divide by an exact power of two near max|W| first, so that
-        # centring, norms and SVD neither overflow (|W| ~ 1e153) nor underflow (~ 1e-165).
-        p2 = power_of_two_scale(W)
-        Wc_p, row_means_p = centre_rows(W / p2)
-        s = normalization_scale(Wc_p)
-        Wn = Wc_p / s
-        scale = s * p2
-        Wc, row_means = Wc_p * p2, row_means_p * p2
-        fact = factorize(Wn, K)
-        timings["factorize"] = time.perf_counter() - t0
-        say(f"rank-{3 * K} factorisation of {2 * F}x{P} W: residual {fact.residual:.3g}")
-
-        rotation_stage = None
-        if rotations is None:
-            from .rotations import estimate_rotations
-
-            t0 = time.perf_counter()
-            rotation_stage = estimate_rotations(
-                fact.M_hat, K, strategy=rotation_strategy, seed=seed, progress=say,
-                **(rotation_options or {}))
-            rotations = rotation_stage.rotations
-            timings["rotations"] = time.perf_counter() - t0
-
-        t0 = time.perf_counter()
-        shape_stage = None
-        if prior is None:
-            X_init = pseudo_inverse_shapes(Wn, rotations)
-            shapes = truncate_rank(X_init, K)
-        else:
-            from .shape import solve_shapes
-
-            # Wn = W / scale: the ADMM's constants assume that scale (nrsfm.scale); the
-            # bilinear and closed-form solvers are scale-free, so it does not matter to them.
-            shape_stage = solve_shapes(Wn, rotations, K, prior=prior, solver=shape_solver,
-                                       progress=say, **(shape_options or {}))
-            X_init, shapes = shape_stage.X_init, shape_stage.shapes
-        timings["shape"] = time.perf_counter() - t0
-
-    from .diagnostics import diagnose
-
-    diagnostics = diagnose(Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
-    diagnostics.warn(stacklevel=2)
-    params = dict(method=method, K=K, seed=seed, rotation_strategy=rotation_strategy,
-                  shape_prior=prior, shape_solver=shape_solver,
-                  rotation_options=dict(rotation_options or {}),
-                  shape_options=dict(shape_options or {}), scale=scale,
-                  rotations_given=rotation_stage is None, missing=missing)
-    shapes_out, X_init_out = (shapes * s) * p2, (X_init * s) * p2
-    if not (np.all(np.isfinite(shapes_out)) and np.isfinite(scale)):
-        raise ValueError(f"the shapes overflow in the input's units (max|W| = "
-                         f"{np.abs(W).max():.3g}); rescale W")
-    return Reconstruction(rotations=rotations, shapes=shapes_out, method=method, K=K,
-                          W=Wc, row_means=row_means, scale=scale, factorization=fact,
-                          X_init=X_init_out, rotation_stage=rotation_stage,
-                          shape_stage=shape_stage, params=params, timings=timings,
-                          diagnostics=diagnostics,
-                          observed=None if completion is None else completion.observed,
-                          W_completed=None if completion is None else completion.W,
-                          completion=completion)
+    return W, K, rotations
 
 
-class _nullcontext:
-    def __enter__(self):
-        return None
+def _complete(W, timings):
+    """(CompletionResult or None, W with its missing entries filled)."""
+    if not np.isnan(W).any():
+        return None, W
+    from .stages.completion import complete_measurements
 
-    def __exit__(self, *exc):
-        return False
+    with _timed(timings, "completion"):
+        completion = complete_measurements(W)
+    if not completion.converged:
+        warnings.warn(f"the completion of W stopped at its iteration cap "
+                      f"({completion.n_iter}) before converging: the filled "
+                      f"entries may be inaccurate", RuntimeWarning, stacklevel=3)
+    return completion, completion.W

@@ -17,7 +17,7 @@ NRSfM recovers shapes and cameras up to a global rotation / reflection (and each
 shape up to the camera's depth sign). To overlay estimate and ground truth:
 
 * shapes: each estimated frame is mapped onto the ground truth of that frame by a
-  similarity Procrustes (rotation, reflection, scale: :func:`nrsfm.metrics.similarity_align`)
+  similarity Procrustes (rotation, reflection, scale: :func:`nrsfm.geometry.align_similarity`)
   -- the same alignment as the ``e3d`` metric, so the gap seen between the two point clouds
   is what ``e3d`` measures. Both are drawn centred in the ground truth's world frame.
 * cameras (and every rotation sample): one global orthogonal ``Q`` minimising
@@ -164,8 +164,9 @@ def recording_content(result, sequence=None):
     -------
     RecordingContent
     """
-    from .metrics import e3d, rotation_error, similarity_align
-    from .shape import phi
+    from .geometry import align_similarity as similarity_align
+    from .metrics import e3d, rotation_error
+    from .stages.shape import phi
 
     F, P = result.n_frames, result.n_points
     X_est = np.asarray(result.shapes, float)

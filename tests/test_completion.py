@@ -5,8 +5,8 @@ import pytest
 
 import data_tools as dt
 import nrsfm
-from nrsfm._validation import check_measurements
-from nrsfm.completion import complete_measurements, observed_mask
+from nrsfm.validation import check_measurements
+from nrsfm.stages.completion import complete_measurements, observed_mask
 
 
 def _low_rank(F=60, P=30, r=6, seed=0):

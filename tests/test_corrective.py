@@ -6,7 +6,7 @@ from threadpoolctl import threadpool_limits
 
 import data_tools
 from nrsfm import corrective as C
-from nrsfm.measurement import factorize
+from nrsfm.stages.measurement import factorize
 
 
 @pytest.fixture(autouse=True)

@@ -9,7 +9,7 @@ from threadpoolctl import threadpool_limits
 import data_tools
 import nrsfm
 from nrsfm import diagnostics as D
-from nrsfm.measurement import factorize
+from nrsfm.stages.measurement import factorize
 
 
 @pytest.fixture(autouse=True)
@@ -100,10 +100,10 @@ def test_bad_triplet_is_flagged():
     """A triplet far from the best minimum: the cost ratio flags it."""
     seq = data_tools.make_synthetic(F=80, P=30, K=2, noise=0.02, seed=5)
     f = factorize(seq.W, 2)
-    good = nrsfm.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
-    bad = nrsfm.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
+    good = nrsfm.stages.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
+    bad = nrsfm.stages.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
     G = np.random.default_rng(0).standard_normal((6, 3))
-    bad.info["corrective_costs"] = np.array([nrsfm.corrective.triplet_cost(G, f.M_hat)])
+    bad.info["corrective_costs"] = np.array([nrsfm.stages.corrective.triplet_cost(G, f.M_hat)])
     bad.G = G[None]
     d_good = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, good)
     d_bad = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, bad)

@@ -5,7 +5,7 @@ from scipy.spatial.transform import Rotation
 import data_tools as dt
 import nrsfm
 from nrsfm.metrics import e3d, e3d_akhter, rotation_error
-from nrsfm.shape import pseudo_inverse_shapes, truncate_rank
+from nrsfm.stages.shape import pseudo_inverse_shapes, truncate_rank
 
 # The paper's Table 2 "Ours-PI" row (pseudo-inverse shape), reproduced from ground-truth
 # rotations with the rank-K truncation of X_init#.

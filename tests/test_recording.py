@@ -11,7 +11,7 @@ from rerun.chunk import RrdReader  # noqa: E402
 
 import data_tools  # noqa: E402
 import nrsfm  # noqa: E402
-from nrsfm.metrics import similarity_align  # noqa: E402
+from nrsfm.geometry import align_similarity as similarity_align  # noqa: E402
 from nrsfm.recording import (build_recording, camera_alignment, recording_content,  # noqa: E402
                              save_recording)
 

@@ -7,7 +7,7 @@ from threadpoolctl import threadpool_limits
 
 import data_tools
 from nrsfm import rotation_error
-from nrsfm.measurement import factorize
+from nrsfm.stages.measurement import factorize
 from nrsfm import rotations as RT
 
 FLIP = np.diag([-1.0, -1.0, 1.0])

@@ -1,4 +1,4 @@
-"""Tests of the shape stage (nrsfm.shape): PSVT, weights, ADMM of Eq. (10)-(13)."""
+"""Tests of the shape stage (nrsfm.stages.shape): PSVT, weights, ADMM of Eq. (10)-(13)."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ import data_tools
 import nrsfm
 from nrsfm.metrics import e3d
 from nrsfm.scale import normalization_scale
-from nrsfm.shape import (PRIORS, ShapeResult, optimize_shapes, phi, phi_inv, psvt,
+from nrsfm.stages.shape import (PRIORS, ShapeResult, optimize_shapes, phi, phi_inv, psvt,
                          pseudo_inverse_shapes, shape_weights, truncate_rank)
 
 
@@ -196,8 +196,8 @@ def test_optimize_shapes_bad_input(change):
 
 
 # ------------------------------------------------------------------ bilinear solver, closed form
-from nrsfm.shape import SHAPE_SOLVERS, solve_shapes  # noqa: E402
-from nrsfm.shape_bilinear import (_objective, bilinear_weights,  # noqa: E402
+from nrsfm.stages.shape import SHAPE_SOLVERS, solve_shapes  # noqa: E402
+from nrsfm.stages.shape.bilinear import (_objective, bilinear_weights,  # noqa: E402
                                   closed_form_coefficients, closed_form_shapes, noise_level,
                                   optimize_shapes_bilinear)
 

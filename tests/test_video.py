@@ -264,7 +264,7 @@ def test_help_lists_video_commands(capsys):
 
 def test_wide_factorisation_matches_the_svd():
     """Dense W (P >> 2F) is factorised through the 2F x 2F Gram matrix."""
-    from nrsfm.measurement import factorize
+    from nrsfm.stages.measurement import factorize
 
     rng = np.random.default_rng(0)
     W = rng.standard_normal((40, 6)) @ rng.standard_normal((6, 2000))

@@ -17,7 +17,7 @@
 # $\mathbf W=(\hat{\mathbf M}\mathbf G)(\mathbf G^{-1}\hat{\mathbf B})$. Finding (the column
 # triplets of) $\mathbf G$ is notebook 02.
 #
-# Here: `nrsfm.measurement.centre_rows` and `nrsfm.measurement.factorize` on synthetic data
+# Here: `nrsfm.stages.measurement.centre_rows` and `nrsfm.stages.measurement.factorize` on synthetic data
 # whose $\mathbf M$ is known, with and without noise, and on MoCap data if available.
 
 # %%
@@ -33,7 +33,7 @@ from scipy.linalg import subspace_angles
 import data_tools
 import nrsfm
 from nrsfm import figures, paths
-from nrsfm.measurement import centre_rows, factorize
+from nrsfm.stages.measurement import centre_rows, factorize
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 
 # %% [markdown]

@@ -24,7 +24,7 @@
 # The paper uses **all $K$ triplets** ("organic priors in the rotation space"); how it gets
 # $K$ different ones is not stated.
 #
-# `nrsfm.corrective.corrective_triplets` returns refined triplets sorted by cost, from one
+# `nrsfm.stages.corrective.corrective_triplets` returns refined triplets sorted by cost, from one
 # of several starting points (`starts=`): `"dai"`, Dai's relaxation as specified (minimum
 # nuclear norm over the approximate null space, coefficients summing to 1); `"relaxed"` (the
 # start of the library's search), a penalised PSD relaxation (trace + penalised constraint
@@ -48,9 +48,9 @@ import rerun as rr
 
 import data_tools
 import nrsfm
-from nrsfm.corrective import (constraint_matrix, corrective_triplets, solution_space,
+from nrsfm.stages.corrective import (constraint_matrix, corrective_triplets, solution_space,
                               triplet_cost)
-from nrsfm.measurement import factorize
+from nrsfm.stages.measurement import factorize
 from nrsfm.recording import camera_alignment, output_path, show_recording, shown_path
 
 
@@ -220,7 +220,7 @@ else:
 
 # %%
 if os.environ.get("NRSFM_DATA"):
-    from nrsfm.measurement import centre_rows
+    from nrsfm.stages.measurement import centre_rows
     from nrsfm.scale import normalization_scale
 
     Wn, _ = centre_rows(data_tools.add_noise(pickup.W, 0.25, seed=0))

@@ -13,14 +13,14 @@
 # 3. **Registration**, **Eq. (3)**: the triplets live in different world frames; with the
 #    reference $\mathbf R^1$, find $\mathbf R^k_{reg}\in SO(3)$ minimising
 #    $\sum_f\|\mathbf R^1_f-\mathbf R^k_f(\mathbf R^k_{reg})^\top\|_F^2$. Because of 2., plain
-#    $SO(3)$ Procrustes is not enough: `nrsfm.rotations.register_rotations` also chooses per
+#    $SO(3)$ Procrustes is not enough: `nrsfm.stages.rotations.register_rotations` also chooses per
 #    frame $\mathbf I$ or $\mathrm{diag}(-1,-1,1)$ and tries both handednesses.
 # 4. **Filtering**: drop samples farther than $\delta=0.05$ from the reference (the paper
 #    does not say which distance; `filter_rotations` uses the geodesic angle by default).
 # 5. After averaging (notebook 04) each frame's depth sign is fixed by motion smoothness
 #    (`resolve_depth_signs`, Dai's rule).
 #
-# `nrsfm.rotations.estimate_rotations` chains these with a strategy for where the $K$
+# `nrsfm.stages.rotations.estimate_rotations` chains these with a strategy for where the $K$
 # triplets come from; compared on MoCap at the end.
 
 # %%
@@ -37,9 +37,9 @@ from scipy.spatial.transform import Rotation
 
 import data_tools
 import nrsfm
-from nrsfm.measurement import factorize
+from nrsfm.stages.measurement import factorize
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
-from nrsfm.rotations import (FLIP, MIRROR, STRATEGIES, estimate_rotations, filter_rotations,
+from nrsfm.stages.rotations import (FLIP, MIRROR, STRATEGIES, estimate_rotations, filter_rotations,
                              register_rotations, resolve_depth_signs, rotation_angle,
                              rotations_from_triplets)
 from nrsfm.scale import normalization_scale

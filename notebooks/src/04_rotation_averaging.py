@@ -17,8 +17,8 @@
 #   entry-wise L1 distance), projected onto $SO(3)$ by $\Upsilon(\Psi)=\mathbf U\mathbf D\mathbf V^\top$
 #   (Lee & Civera), rather than the chordal L2 mean.
 #
-# `nrsfm.rotations.average_rotations` is Algorithm 1 vectorised over frames;
-# `nrsfm.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
+# `nrsfm.stages.rotations.average_rotations` is Algorithm 1 vectorised over frames;
+# `nrsfm.stages.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
 
 # %%
 import os
@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.recording import build_recording, output_path, show_recording, shown_path
-from nrsfm.rotations import (average_rotations, chordal_mean, project_to_so3,
+from nrsfm.stages.rotations import (average_rotations, chordal_mean, project_to_so3,
                              resolve_depth_signs, rotation_angle)
 
 # %% [markdown]

@@ -4,7 +4,7 @@
 # Paper Sec. 3.2. Given the cameras $\mathbf R$, the shape problem is **Eq. (2)**:
 # fit $\mathbf W$ with $\operatorname{rank}\mathbf X^\sharp\le K$, where
 # $\mathbf X^\sharp=\Phi(\mathbf X)\in\mathbb R^{F\times3P}$ holds frame $f$'s shape as row $f$
-# (`nrsfm.shape.phi`). Three relaxations of the rank:
+# (`nrsfm.stages.shape.phi`). Three relaxations of the rank:
 #
 # * **Eq. (7)** (BMM, Dai et al.): $\tfrac12\|\mathbf W-\mathbf R\mathbf X\|_F^2+\mu\|\mathbf X^\sharp\|_*$;
 # * **Eq. (8)** (R-BMM, Kumar 2020): a weighted nuclear norm $\|\mathbf X^\sharp\|_{*,\theta}$ with
@@ -25,7 +25,7 @@
 #
 # The ADMM is a continuation ($\rho$ grows 10 % per iteration): its answer is where the path
 # freezes. The second half of this notebook sets beside it the solver of
-# `nrsfm.shape_bilinear` (`shape_solver="bilinear"`, the library's default: it measured
+# `nrsfm.stages.shape.bilinear` (`shape_solver="bilinear"`, the library's default: it measured
 # better on exactness, stability and noise; `docs/shape_stage.md`). The first half passes
 # `shape_solver="admm"` explicitly. The bilinear solver minimises the same weighted nuclear norm in the
 # factored form of Iglesias, Olsson & Örnhag (ECCV 2020),
@@ -34,8 +34,8 @@
 # gradient vanishes, with $\mu$ from the noise level of $\mathbf W$ beyond rank $3K$, and the
 # closed-form rank-$K$ solution (Valmadre et al., DICTA 2015) as its start.
 #
-# Everything below calls `nrsfm.shape` (`pseudo_inverse_shapes`, `psvt`, `shape_weights`,
-# `optimize_shapes`), `nrsfm.shape_bilinear` or `nrsfm.reconstruct`; the rotations are the
+# Everything below calls `nrsfm.stages.shape` (`pseudo_inverse_shapes`, `psvt`, `shape_weights`,
+# `optimize_shapes`), `nrsfm.stages.shape.bilinear` or `nrsfm.reconstruct`; the rotations are the
 # ground truth's, so that only the shape stage is judged.
 
 # %%
@@ -53,7 +53,7 @@ import data_tools
 import nrsfm
 from nrsfm import figures
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
-from nrsfm.shape import (optimize_shapes, phi, pseudo_inverse_shapes, psvt, shape_weights)
+from nrsfm.stages.shape import (optimize_shapes, phi, pseudo_inverse_shapes, psvt, shape_weights)
 
 # %% [markdown]
 # ## The pseudo-inverse shape is planar
@@ -208,7 +208,7 @@ plt.show()
 # rank-$K$ fit. The ADMM's relaxation does not (its error is the relaxation's bias).
 
 # %%
-from nrsfm.shape_bilinear import closed_form_shapes, optimize_shapes_bilinear
+from nrsfm.stages.shape.bilinear import closed_form_shapes, optimize_shapes_bilinear
 
 exact = {}
 for K_ in (1, 2, 4, 8):

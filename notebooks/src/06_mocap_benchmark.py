@@ -12,7 +12,7 @@
 # (`NRSFM_BENCH_BUDGET` seconds, default 240) is spent: then the remaining ones are listed
 # as *not run* in the table, never dropped silently. Three runs per sequence where possible:
 #
-# * `organic`: the full pipeline, `nrsfm.reconstruct(W, K)` (needs `nrsfm.rotations`);
+# * `organic`: the full pipeline, `nrsfm.reconstruct(W, K)` (needs `nrsfm.stages.rotations`);
 # * `bmm`: the baseline of Dai et al. in the same code (`method="bmm"`: best single
 #   triplet, plain nuclear norm), beside the paper's BMM column (note: the paper quotes
 #   BMM's published figures, which use Akhter's metric, `nrsfm.e3d_akhter`, not `e3d`);

@@ -90,7 +90,7 @@ for t in res["tables"]:
 # ## Missing data
 #
 # The pipeline completes W (NaN = not observed) by nuclear-norm completion of the
-# time-lagged matrix (`nrsfm.completion`), then runs as usual. The curve goes from 10 to 50 %
+# time-lagged matrix (`nrsfm.stages.completion`), then runs as usual. The curve goes from 10 to 50 %
 # of the point observations removed; the dotted line is the complete-data e3d.
 
 # %%

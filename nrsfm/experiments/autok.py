@@ -53,16 +53,16 @@ def choose_K(W, relative_floor=RELATIVE_FLOOR):
     Raises
     ------
     ValueError
-        Bad W (see :func:`nrsfm._validation.check_measurements`), bad floor.
+        Bad W (see :func:`nrsfm.validation.check_measurements`), bad floor.
     """
-    from .._validation import check_measurements
-    from ..measurement import centre_rows
+    from ..validation import check_measurements
+    from ..stages.measurement import centre_rows
 
     if not (0 < relative_floor < 1):
         raise ValueError(f"relative_floor must be in (0, 1); got {relative_floor!r}")
     W = check_measurements(W, allow_missing=True)
     if np.isnan(W).any():
-        from ..completion import complete_measurements
+        from ..stages.completion import complete_measurements
 
         W = complete_measurements(W).W
     Wc, _ = centre_rows(W)

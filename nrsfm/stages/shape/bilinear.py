@@ -16,7 +16,7 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   which goes into ``mu``); ``weighted`` the same ratios with ``a_1 = 1`` (Eq. 8); ``nuclear``
   ``a_i = 1`` (Eq. 7).
 * Balance from W alone: ``mu = mu_factor * noise * (sqrt(F) + sqrt(3P))``, ``noise`` the
-  RMS of W beyond its rank-3K approximation (:func:`noise_level`), ``mu_factor = 0.03``
+  RMS of W beyond its rank-3K approximation (:func:`nrsfm.noise.noise_level`), ``mu_factor = 0.03``
   (measured; 1 would be the threshold that removes Gaussian noise of that level and is far
   too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the
   exact rank-K fit. If that fit is not unique (closed-form nullspace gap at rounding
@@ -41,29 +41,23 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-from ._validation import check_measurements, check_rotations
+from ...noise import noise_from_singular_values
+from ...settings import PRIORS, BilinearSettings, ClosedFormSettings
+from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["BilinearShapeResult", "bilinear_weights", "closed_form_coefficients",
-           "closed_form_result", "closed_form_shapes", "noise_level",
-           "optimize_shapes_bilinear"]
+__all__ = ["bilinear_weights", "closed_form_coefficients", "closed_form_result",
+           "closed_form_shapes", "optimize_shapes_bilinear", "solve_bilinear",
+           "solve_closed_form"]
 
-
-def _check(W, R, K):
-    W = check_measurements(W)
-    F, P = W.shape[0] // 2, W.shape[1]
-    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
-    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
-        raise ValueError(f"K must be a positive integer; got {K!r}")
-    K = int(K)
-    if 3 * K > min(2 * F, P):
-        raise ValueError(f"K={K} too large for F={F}, P={P}: need 3K <= min(2F, P)")
-    return W, Rf, F, P, K
+#: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
+NULLSPACE_GAP_MIN = 1e-12
+#: L-BFGS restarts with a fresh preconditioner every this many iterations
+LBFGS_SEGMENT = 100
 
 
 # --------------------------------------------------------------------------------------
@@ -87,7 +81,7 @@ def closed_form_coefficients(W, R, K):
         The K + 1 smallest eigenvalues of the quadratic form (relative to the largest):
         K near-zero values and a clear gap mean the rank-K solution is determined.
     """
-    W, Rf, F, P, K = _check(W, R, K)
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
     U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
     return _nullspace_coefficients(U, s, Rf, K)
 
@@ -109,20 +103,21 @@ def _nullspace_coefficients(U, s, Rf, K):
     return B, evals[:K + 1] / max(evals[-1], 1e-300)
 
 
-def closed_form_result(W, R, K, **options):
-    """The closed-form rank-K shape as a shape-stage result (``shape_solver="closed_form"``).
+def closed_form_result(W, R, K, gtol=ClosedFormSettings.gtol, progress=None):
+    """The closed-form rank-K shape as a shape-stage result (``solver="closed_form"``).
 
     :func:`optimize_shapes_bilinear` with ``mu = 0`` and no iterations: B from
     :func:`closed_form_coefficients`, C by least squares; the result reports the data term
     and the relative gradient norm of the plain rank-K fit at that point. No prior.
     """
-    options = dict(options)
-    for key in ("mu", "mu_factor", "max_iter", "init", "rank"):
-        if key in options:
-            raise ValueError(f"closed_form takes no {key!r} option")
-    res = optimize_shapes_bilinear(W, R, K, prior="nuclear", mu=0.0, max_iter=0,
-                                   init="closed_form", **options)
-    res.prior = "none"
+    return solve_closed_form(W, R, K, None, ClosedFormSettings(gtol=gtol), progress)
+
+
+def solve_closed_form(W, R, K, prior, settings, progress=None):
+    """The shape stage's closed form (``prior`` is ignored: an exact rank-K fit has none)."""
+    res = _bilinear(W, R, K, "nuclear", BilinearSettings(mu=0.0, max_iter=0, gtol=settings.gtol),
+                    progress)
+    res.prior, res.solver = "none", "closed_form"
     res.params["prior"] = "none"
     return res
 
@@ -145,7 +140,7 @@ def closed_form_shapes(W, R, K):
     -------
     X : (F, 3, P) ndarray
     """
-    W, Rf, F, P, K = _check(W, R, K)
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
     B, _ = closed_form_coefficients(W, Rf, K)
     B = B / np.linalg.norm(B, axis=0)
     Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
@@ -157,24 +152,6 @@ def closed_form_shapes(W, R, K):
 # --------------------------------------------------------------------------------------
 # noise level and weights
 # --------------------------------------------------------------------------------------
-
-def noise_level(W, K):
-    """RMS of W beyond its rank-3K approximation, per degree of freedom.
-
-    ``||W - W_3K||_F / sqrt((2F - 3K)(P - 3K))``: for W = low rank + i.i.d. noise of std s
-    this estimates s (slightly low: the rank-3K fit absorbs some noise). From W alone; in
-    W's units. Zero for exactly rank-3K W.
-    """
-    W = check_measurements(W)
-    return _noise_from_singular_values(np.linalg.svd(W, compute_uv=False), W.shape, K)
-
-
-def _noise_from_singular_values(s, shape, K):
-    F2, P = shape
-    tail = float(np.sqrt(np.sum(s[3 * K:] ** 2)))
-    dof = max((F2 - 3 * K) * (P - 3 * K), 1)
-    return tail / math.sqrt(dof)
-
 
 def bilinear_weights(sigma, r, prior):
     """Dimensionless weights ``a`` (r,) of (*) from the singular values of ``X_init#``.
@@ -277,68 +254,11 @@ def _balance(B, C):
 # solver
 # --------------------------------------------------------------------------------------
 
-@dataclass
-class BilinearShapeResult:
-    """Result of :func:`optimize_shapes_bilinear`.
-
-    Attributes
-    ----------
-    shapes : (F, 3, P) ndarray
-        ``Phi^-1(B C')`` in the units of the W given.
-    X_init : (F, 3, P) ndarray
-        Pseudo-inverse shape ``pinv(R_f) W_f``.
-    X_init_singular_values : (min(F, 3P),) ndarray
-    theta : (r,) ndarray
-        The weights ``mu a_i`` of (*) (W's units).
-    weights : (r,) ndarray
-        Dimensionless ``a``.
-    mu, noise : float
-        Balance of (*) and the noise level it came from (W's units).
-    N : int
-        Leading components left unpenalised (1 for ``organic``, else 0).
-    prior : str
-    B, C : ndarrays (F, r), (3P, r)
-        The factors (W's units, balanced).
-    objective : float
-        E(B, C) at the end (W's units squared).
-    wnn_objective : float
-        ``1/2 ||W - R X||^2 + sum_i mu a_i sigma_i(X#)`` at the end (equal to
-        ``objective`` at a balanced stationary point).
-    grad_norm : float
-        Relative gradient norm ``||grad E|| / (||W||_F ||(B, C)||_F)`` at the end
-        (scale-free first-order optimality measure).
-    history : dict of (n_iter + 1,) ndarrays
-        ``cost`` (E, normalised units: W / ||W||_F), ``data_term``, ``grad_norm``
-        (relative), starting with the initial point.
-    n_iter : int
-    converged : bool
-        True when ``grad_norm <= gtol``.
-    params : dict
-    """
-
-    shapes: np.ndarray
-    X_init: np.ndarray
-    X_init_singular_values: np.ndarray
-    theta: np.ndarray
-    weights: np.ndarray
-    mu: float
-    noise: float
-    N: int
-    prior: str
-    B: np.ndarray
-    C: np.ndarray
-    objective: float
-    wnn_objective: float
-    grad_norm: float
-    history: dict = field(default_factory=dict)
-    n_iter: int = 0
-    converged: bool = False
-    params: dict = field(default_factory=dict)
-
-
-def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0.03,
-                             mu=None, min_mu=1e-5, init="closed_form", gtol=1e-6,
-                             max_iter=3000, progress=None):
+def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None,
+                             mu_factor=BilinearSettings.mu_factor, mu=None,
+                             min_mu=BilinearSettings.min_mu, init="closed_form",
+                             gtol=BilinearSettings.gtol, max_iter=BilinearSettings.max_iter,
+                             progress=None):
     """Minimise (*) (module docstring) to a stationary point by variable projection.
 
     Parameters
@@ -353,7 +273,8 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
     rank : int, optional
         Factor rank r (default K).
     mu_factor : float
-        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (default 1).
+        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (default 0.03,
+        measured: ``docs/shape_stage.md``).
     mu : float, optional
         Override ``mu`` (W's units).
     min_mu : float
@@ -371,106 +292,141 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
 
     Returns
     -------
-    BilinearShapeResult
+    ShapeResult
     """
-    W, Rf, F, P, K = _check(W, R, K)
-    if prior not in ("organic", "weighted", "nuclear"):
-        raise ValueError(f"unknown shape prior {prior!r}; expected organic, weighted or nuclear")
-    r = K if rank is None else int(rank)
-    if not 1 <= r <= min(F, 3 * P):
-        raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {rank!r}")
-    if init not in ("closed_form", "rank_k"):
-        raise ValueError(f"init must be 'closed_form' or 'rank_k'; got {init!r}")
-    if not (np.isfinite(min_mu) and min_mu >= 0):
-        raise ValueError(f"min_mu must be non-negative; got {min_mu!r}")
-    if not (np.isfinite(mu_factor) and mu_factor >= 0):
-        raise ValueError(f"mu_factor must be non-negative; got {mu_factor!r}")
-    if not (np.isfinite(gtol) and gtol >= 0):
-        raise ValueError(f"gtol must be non-negative; got {gtol!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
-        raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
-    say = progress if callable(progress) else (lambda msg: None)
+    settings = BilinearSettings(rank=rank, mu_factor=mu_factor, mu=mu, min_mu=min_mu,
+                                init=init, gtol=gtol, max_iter=max_iter)
+    return _bilinear(W, R, K, prior, settings, progress)
 
+
+def solve_bilinear(W, R, K, prior, settings, progress=None):
+    """The shape stage's bilinear solver (:func:`optimize_shapes_bilinear`)."""
+    return _bilinear(W, R, K, prior, settings, progress)
+
+
+class _Objective:
+    """E(B, C) of (*) on normalised W (``||W||_F = 1``), with its iteration record."""
+
+    def __init__(self, Pi, Xi, reg):
+        self.Pi, self.Xi, self.reg, self.w2 = Pi, Xi, reg, 1.0      # w2 = ||Wn||_F^2
+        self.hist = {"cost": [], "data_term": [], "grad_norm": []}
+
+    def c_step(self, B):
+        return _c_step(B, self.Pi, self.Xi, self.reg)
+
+    def values(self, B, C):
+        return _objective(B, C, self.Pi, self.Xi, self.w2, self.reg)
+
+    def measure(self, B, C, values=None):
+        """(E, data term, relative gradient norm)."""
+        E, data, gB, gC = self.values(B, C) if values is None else values
+        g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
+        rel = g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
+        return E, data, rel
+
+    def record(self, B, C, values=None):
+        E, data, rel = self.measure(B, C, values)
+        self.hist["cost"].append(E)
+        self.hist["data_term"].append(data)
+        self.hist["grad_norm"].append(rel)
+        return rel
+
+
+def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
+    """mu (normalised units), the noise level, the closed-form start B0 and the nullspace
+    gap; a RuntimeWarning (and ``mu >= min_mu``) when the rank-K fit is not unique."""
+    noise = noise_from_singular_values(sw, Wn_shape, K)
+    if st.mu is None:
+        mu_n = st.mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P))
+    else:
+        mu_n = float(st.mu) / scale
+    gap, B0 = float("nan"), None
+    if st.init == "closed_form" and r == K:
+        B0, ev = _nullspace_coefficients(Uw, sw, Rf, K)
+        gap = float(ev[K]) if ev.size > K else float("nan")
+        if not gap > NULLSPACE_GAP_MIN:
+            what = (f"the prior decides: mu raised to at least min_mu = {st.min_mu:g} "
+                    f"||W||_F" if st.mu is None else "the result is one of many")
+            warnings.warn(f"the rank-{K} fit of W with these cameras is not unique "
+                          f"(closed-form nullspace gap {gap:.1e}); {what}", RuntimeWarning,
+                          stacklevel=4)
+            if st.mu is None:
+                mu_n = max(mu_n, st.min_mu)
+    return mu_n, noise, B0, gap
+
+
+def _bilinear(W, R, K, prior, st, progress):
+    """Set-up, start, L-BFGS (:func:`_minimise`) and the result in W's units."""
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    if prior not in PRIORS:
+        raise ValueError(f"unknown shape prior {prior!r}; expected organic, weighted or nuclear")
+    r = K if st.rank is None else st.rank
+    if not 1 <= r <= min(F, 3 * P):
+        raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {r!r}")
+    say = progress if callable(progress) else (lambda msg: None)
     scale = float(np.linalg.norm(W))
     if not scale > 0:
         raise ValueError("W is zero: nothing to reconstruct")
     Wn = W / scale
     Wf = Wn.reshape(F, 2, P)
     Rt = Rf.transpose(0, 2, 1)
-    Pi = Rt @ Rf
     Xi3 = Rt @ Wf
     Xi = Xi3.reshape(F, 3 * P)
-    w2 = 1.0                                                   # ||Wn||_F^2
     sigma = _singular_values(Xi)
     a = bilinear_weights(sigma, r, prior)
     Uw, sw, _ = np.linalg.svd(Wn, full_matrices=False)        # one thin SVD of W
-    noise = _noise_from_singular_values(sw, Wn.shape, K)
-    if mu is None:
-        mu_n = mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P))
-    else:
-        if not (np.isfinite(mu) and mu >= 0):
-            raise ValueError(f"mu must be non-negative; got {mu!r}")
-        mu_n = float(mu) / scale
-    # start; the closed form's (K+1)-th eigenvalue tells whether the rank-K fit is unique
-    gap = float("nan")
-    if init == "closed_form" and r == K:
-        B0, ev = _nullspace_coefficients(Uw, sw, Rf, K)
-        gap = float(ev[K]) if ev.size > K else float("nan")
-    else:
-        B0 = None
-    if not gap > 1e-12 and init == "closed_form" and r == K:
-        what = (f"the prior decides: mu raised to at least min_mu = {min_mu:g} ||W||_F"
-                if mu is None else "the result is one of many")
-        warnings.warn(f"the rank-{K} fit of W with these cameras is not unique (closed-form "
-                      f"nullspace gap {gap:.1e}); {what}", RuntimeWarning, stacklevel=2)
-        if mu is None:
-            mu_n = max(mu_n, min_mu)
-    reg = mu_n * a
+    mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
+    obj = _Objective(Rt @ Rf, Xi, mu_n * a)
     if B0 is None:
         U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
         B0 = U[:, :r] * np.sqrt(sv[:r])
     B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
-    C0 = _c_step(B0, Pi, Xi, reg)
-    B0, C0 = _balance(B0, C0)
+    B, C = _balance(B0, obj.c_step(B0))
+    B, C, n_iter = _minimise(B, C, obj, st.gtol, st.max_iter, F, r)
+    E, data, rel = obj.measure(B, C)
+    res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
+    data_exact = 0.5 * float(np.sum(res ** 2))
+    E += data_exact - data                                     # exact data term
+    s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
+                        compute_uv=False)                      # sigma(B C'), r x r
+    converged = rel <= st.gtol
+    say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
+        f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")
+    params = dict(prior=prior, K=K, rank=r, mu_factor=st.mu_factor, min_mu=st.min_mu,
+                  init=st.init, gtol=st.gtol, max_iter=int(st.max_iter),
+                  normalisation=scale, nullspace_gap=gap)
+    return ShapeResult(
+        shapes=(B @ C.T).reshape(F, 3, P) * scale, X_init=Xi3 * scale,
+        X_init_singular_values=sigma * scale, theta=obj.reg * scale, weights=a,
+        mu=mu_n * scale, noise=noise * scale, N=1 if prior == "organic" else 0,
+        prior=prior, solver="bilinear", B=B * math.sqrt(scale), C=C * math.sqrt(scale),
+        objective=E * scale ** 2, wnn_objective=(data_exact + float(obj.reg @ s_x)) * scale ** 2,
+        optimality=rel, history={k: np.asarray(v) for k, v in obj.hist.items()},
+        n_iter=n_iter, converged=converged, params=params)
 
-    hist = {"cost": [], "data_term": [], "grad_norm": []}
 
-    def measure(B, C, values=None):
-        E, data, gB, gC = _objective(B, C, Pi, Xi, w2, reg) if values is None else values
-        g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
-        rel = g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
-        return E, data, rel
+class _Done(Exception):
+    pass
 
-    def record(B, C, values=None):
-        E, data, rel = measure(B, C, values)
-        hist["cost"].append(E)
-        hist["data_term"].append(data)
-        hist["grad_norm"].append(rel)
-        return rel
 
-    rel = record(B0, C0)
-    state = {"B": B0}
-
-    class _Done(Exception):
-        pass
-
+def _minimise(B, C, obj, gtol, max_iter, F, r):
+    """L-BFGS on the reduced objective f(B) = min_C E(B, C), in preconditioned variables
+    z_f = L_f' B_f with L_f L_f' = H_f the per-frame Hessian of E in B_f at the current C
+    (r x r). Restarted every :data:`LBFGS_SEGMENT` iterations with a fresh preconditioner
+    from balanced factors (balancing keeps X# and never raises E)."""
+    rel = obj.record(B, C)
     n_iter = 0
-    B, C = B0, C0
-    # L-BFGS on the reduced objective f(B) = min_C E(B, C), in preconditioned variables
-    # z_f = L_f' B_f with L_f L_f' = H_f the per-frame Hessian of E in B_f at the current C
-    # (r x r). Restarted every `segment` iterations with a fresh preconditioner from
-    # balanced factors (balancing keeps X# and never raises E).
-    segment = 100
+    state = {"B": B}
     while rel > gtol and n_iter < max_iter:
-        Linv = _frame_preconditioner(C, Pi, reg)              # (F, r, r), L_f^-1
+        Linv = _frame_preconditioner(C, obj.Pi, obj.reg)      # (F, r, r), L_f^-1
 
         def to_B(z):
             return np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
 
         def fun(z):
             Bz = to_B(z)
-            Cz = _c_step(Bz, Pi, Xi, reg)
-            vals = _objective(Bz, Cz, Pi, Xi, w2, reg)
+            Cz = obj.c_step(Bz)
+            vals = obj.values(Bz, Cz)
             state["last"] = (z.copy(), Bz, Cz, vals)
             return vals[0], np.einsum("fij,fj->fi", Linv, vals[2]).ravel()
 
@@ -480,10 +436,10 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
             z_last, Bk, Ck, vals = state["last"]
             if not np.array_equal(z_last, zk):      # not the last evaluated point
                 Bk = to_B(zk)
-                Ck = _c_step(Bk, Pi, Xi, reg)
+                Ck = obj.c_step(Bk)
                 vals = None
             state["B"] = Bk
-            rel = record(Bk, Ck, vals)
+            rel = obj.record(Bk, Ck, vals)
             if rel <= gtol or n_iter >= max_iter:
                 raise _Done
 
@@ -493,35 +449,15 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None, mu_factor=0
         try:
             out = scipy.optimize.minimize(
                 fun, z0, jac=True, method="L-BFGS-B", callback=cb,
-                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=20, gtol=0.0,
-                             ftol=0.0, maxls=40))
+                options=dict(maxiter=min(LBFGS_SEGMENT, max_iter - n_iter), maxcor=20,
+                             gtol=0.0, ftol=0.0, maxls=40))
             B = to_B(out.x)
         except _Done:
             B = state["B"]
-        B, C = _balance(B, _c_step(B, Pi, Xi, reg))
-        C = _c_step(B, Pi, Xi, reg)
-        rel = measure(B, C)[2]
+        B, C = _balance(B, obj.c_step(B))
+        C = obj.c_step(B)
+        rel = obj.measure(B, C)[2]
         if n_iter == n_before:                  # no progress possible (rounding level)
             break
     B, C = _balance(B, C)
-    E, data, rel = measure(B, C)
-    res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
-    E += 0.5 * float(np.sum(res ** 2)) - data                  # exact data term
-    data = 0.5 * float(np.sum(res ** 2))
-    converged = rel <= gtol
-    X = (B @ C.T).reshape(F, 3, P) * scale
-    s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
-                        compute_uv=False)                      # sigma(B C'), r x r
-    wnn = data + float(reg @ s_x)
-    say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
-        f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")
-    params = dict(prior=prior, K=K, rank=r, mu_factor=mu_factor, min_mu=min_mu, init=init,
-                  gtol=gtol, max_iter=int(max_iter), normalisation=scale, nullspace_gap=gap)
-    return BilinearShapeResult(
-        shapes=X, X_init=Xi3 * scale, X_init_singular_values=sigma * scale,
-        theta=reg * scale, weights=a, mu=mu_n * scale, noise=noise * scale,
-        N=1 if prior == "organic" else 0, prior=prior,
-        B=B * math.sqrt(scale), C=C * math.sqrt(scale), objective=E * scale ** 2,
-        wnn_objective=wnn * scale ** 2, grad_norm=rel,
-        history={k: np.asarray(v) for k, v in hist.items()}, n_iter=n_iter,
-        converged=converged, params=params)
+    return B, C, n_iter

@@ -1,7 +1,4 @@
-"""Shape stage (paper Sec. 3.2): pseudo-inverse shape and the paper's continuation ADMM.
-
-Notation: ``X`` is the per-frame shape, (F, 3, P); ``X#`` (``X_sharp``) its reshuffle
-Phi(X), (F, 3P), whose row f is ``[x-coords, y-coords, z-coords]`` of frame f's P points.
+"""The paper's continuation ADMM for the shape stage (paper Sec. 3.2, ``solver="admm"``).
 
 The paper's problem (Eq. 8, 10) is
 
@@ -9,7 +6,7 @@ The paper's problem (Eq. 8, 10) is
 
 with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)``, solved by ADMM (Eq. 11-14)
 with the partial singular value thresholding (PSVT) operator of Oh et al. for the X# step
-(:func:`optimize_shapes`, ``shape_solver="admm"``). Three priors share the machinery:
+(:func:`optimize_shapes`). Three priors share the machinery:
 
 ``organic``  (the paper): N = 1, theta_i = xi / (sigma_i(X_init#) + gamma) (Eq. 9).
 ``weighted`` (R-BMM-style baseline): N = 0, the same weights on every singular value.
@@ -17,66 +14,53 @@ with the partial singular value thresholding (PSVT) operator of Oh et al. for th
              sum_i sigma_i`` for every singular value (X_init pays the same penalty).
 
 The ADMM is a continuation (rho grows 10 % per iteration): its answer is where the path
-freezes, not a minimiser of Eq. (10), and its constants assume the scale of
-:mod:`nrsfm.scale`. The alternatives, a factored objective minimised to a verified
-stationary point and the closed-form rank-K solution, are in :mod:`nrsfm.shape_bilinear`;
-:func:`solve_shapes` runs any of them. Measurements: ``docs/shape_stage.md``.
+freezes, not a minimiser of Eq. (10). Its thresholds are absolute (``xi = 5e-3
+sqrt(sigma_1(X_init#))``, ``rho0 = 1e-4``, ``theta_i = xi / sigma_i``), so its result depends
+on the units of W: :func:`solve_admm`, the stage's entry, runs it on ``W / s`` with
+``s = ||W||_F / TARGET_FROBENIUS`` and multiplies the shapes by ``s``. The rule uses W alone
+and is homogeneous of degree one, so the stage is exactly scale invariant; but 170 is a
+setting of this solver, chosen on the eight MoCap sequences (other targets give different
+answers, see ``docs/shape_stage.md``). The other solvers are scale-free.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import check_measurements, check_rotations
+from ...settings import PRIORS, AdmmSettings
+from .common import ShapeResult, check_shape_inputs, phi, phi_inv, truncate_rank
 
-__all__ = ["PRIORS", "SHAPE_SOLVERS", "ShapeResult", "optimize_shapes", "phi", "phi_inv",
-           "psvt", "pseudo_inverse_shapes", "shape_weights", "solve_shapes", "truncate_rank"]
+__all__ = ["TARGET_FROBENIUS", "normalization_scale", "optimize_shapes", "psvt",
+           "shape_weights", "solve_admm"]
 
-#: Shape solvers understood by :func:`solve_shapes` (and ``reconstruct(shape_solver=...)``).
-SHAPE_SOLVERS = ("admm", "bilinear", "closed_form")
-
-#: Shape priors understood by :func:`optimize_shapes`: prior -> default N.
-PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
-
-
-def phi(X):
-    """Phi: (F, 3, P) shapes -> (F, 3P) X#."""
-    X = np.asarray(X)
-    return X.reshape(X.shape[0], -1)
+#: Frobenius norm of the W the ADMM's constants are tuned for (its setting).
+TARGET_FROBENIUS = 170.0
+#: ``xi = XI_FACTOR sqrt(sigma_1(X_init#))`` (paper Sec. 4, implementation details)
+XI_FACTOR = 5e-3
+#: a progress line every this many iterations
+PROGRESS_EVERY = 100
 
 
-def phi_inv(X_sharp, P):
-    """Inverse of :func:`phi`: (F, 3P) -> (F, 3, P)."""
-    X_sharp = np.asarray(X_sharp)
-    return X_sharp.reshape(X_sharp.shape[0], 3, P)
+def normalization_scale(W):
+    """``s = ||W||_F / TARGET_FROBENIUS``: the ADMM runs on ``W / s``.
 
-
-def pseudo_inverse_shapes(W, R):
-    """Per-frame pseudo-inverse shape ``X_init = pinv(R) W`` (paper Sec. 3.2).
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-    R : (F, 2, 3) or (F, 3, 3) ndarray
-        Per-frame cameras; only the first two rows are used.
-
-    Returns
-    -------
-    X_init : (F, 3, P) ndarray
-        The minimum-norm solution of ``R_f X_f = W_f`` per frame (planar for every frame).
+    Raises
+    ------
+    ValueError
+        W not 2-D, non-finite, or zero.
     """
-    F = W.shape[0] // 2
-    Rf = np.asarray(R)[:, :2, :]
-    return np.linalg.pinv(Rf) @ W.reshape(F, 2, -1)
-
-
-def truncate_rank(X, K):
-    """Project X# = Phi(X) onto its top-K singular vectors; returns (F, 3, P)."""
-    U, s, Vt = np.linalg.svd(phi(X), full_matrices=False)
-    return phi_inv((U[:, :K] * s[:K]) @ Vt[:K], X.shape[2])
+    W = np.asarray(W, dtype=float)
+    if W.ndim != 2:
+        raise ValueError(f"W must be a 2-D (2F, P) matrix; got shape {W.shape}")
+    if not np.all(np.isfinite(W)):
+        raise ValueError("W contains NaN or infinite entries")
+    norm = float(np.linalg.norm(W))
+    if not norm > 0:
+        raise ValueError("W is constant (every row has zero spread, W is zero after centring): "
+                         "nothing to reconstruct")
+    return norm / TARGET_FROBENIUS
 
 
 # --------------------------------------------------------------------------------------
@@ -187,7 +171,7 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
     if not (np.isfinite(gamma) and gamma > 0):
         raise ValueError(f"gamma must be positive; got {gamma!r}")
     if xi is None:
-        xi = 5e-3 * math.sqrt(float(sigma.max()))
+        xi = XI_FACTOR * math.sqrt(float(sigma.max()))
     if not (np.isfinite(xi) and xi > 0):
         raise ValueError(f"xi must be positive; got {xi!r} (is X_init zero?)")
     return xi / (sigma + gamma)
@@ -197,63 +181,6 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
 # ADMM (Eq. 10-14)
 # --------------------------------------------------------------------------------------
 
-@dataclass
-class ShapeResult:
-    """Result of :func:`optimize_shapes`.
-
-    Attributes
-    ----------
-    shapes : (F, 3, P) ndarray
-        The final shape (in the units of the W given, i.e. normalised units in the pipeline).
-    X_init : (F, 3, P) ndarray
-        Pseudo-inverse shape ``pinv(R_f) W_f`` (planar per frame).
-    X_init_singular_values : (min(F, 3P),) ndarray
-        Singular values of ``X_init# = Phi(X_init)``.
-    theta : (min(F, 3P),) ndarray
-        Weights used (Eq. 9 for ``organic``/``weighted``; constant for ``nuclear``). The
-        first N are reported but not used (those singular values are not penalised).
-    N : int
-        Number of leading singular values left unpenalised.
-    prior : str
-    history : dict of (n_iter,) ndarrays
-        Per iteration: ``cost`` (Eq. 10 objective at (X, X#)), ``data_term``
-        (``1/2 ||W - R X||_F^2``), ``residual`` (``max |X# - Phi(X)|``), ``rho`` (the
-        penalty used in that iteration).
-    n_iter : int
-    converged : bool
-        True when the residual fell below ``eps``; False when stopped by ``rho_max`` or
-        ``max_iter``.
-    params : dict
-        Every constant used.
-    """
-
-    shapes: np.ndarray
-    X_init: np.ndarray
-    X_init_singular_values: np.ndarray
-    theta: np.ndarray
-    N: int
-    prior: str
-    history: dict = field(default_factory=dict)
-    n_iter: int = 0
-    converged: bool = False
-    params: dict = field(default_factory=dict)
-
-
-def _check_inputs(W, R):
-    W = check_measurements(W)
-    F, P = W.shape[0] // 2, W.shape[1]
-    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
-    return W, Rf, F, P
-
-
-def _positive(name, value, strict=True):
-    ok = np.isfinite(value) and (value > 0 if strict else value >= 0)
-    if not ok:
-        raise ValueError(f"{name} must be {'positive' if strict else 'non-negative'} "
-                         f"and finite; got {value!r}")
-    return float(value)
-
-
 def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=1.1,
                     rho_max=1e10, eps=1e-10, xi=None, gamma=1e-6, max_iter=1000,
                     init="rank_k", output="X", progress=None):
@@ -262,7 +189,8 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
     Parameters
     ----------
     W : (2F, P) ndarray
-        Row-centred measurements (normalised units, see :mod:`nrsfm.scale`).
+        Row-centred measurements, in the units the constants assume
+        (:func:`solve_admm` brings W to ``||W||_F = TARGET_FROBENIUS`` first).
     R : (F, 3, 3) or (F, 2, 3) ndarray
         Camera rotations; the first two rows of each must be orthonormal.
     K : int
@@ -318,55 +246,62 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
     Open details (output, init, stopping, lam) were decided by measurement; see
     ``docs/shape_stage.md``.
     """
-    if prior not in PRIORS:
-        raise ValueError(f"unknown shape prior {prior!r}; expected one of {sorted(PRIORS)}")
-    if init not in ("full", "rank_k"):
-        raise ValueError(f"init must be 'full' or 'rank_k'; got {init!r}")
-    if output not in ("X", "X_sharp"):
-        raise ValueError(f"output must be 'X' or 'X_sharp'; got {output!r}")
-    W, Rf, F, P = _check_inputs(W, R)
-    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
-        raise ValueError(f"K must be a positive integer; got {K!r}")
-    K = int(K)
-    N = PRIORS[prior] if N is None else _check_N(N)
-    mu = _positive("mu", mu, strict=False)
-    rho0 = _positive("rho0", rho0)
-    rho_max = _positive("rho_max", rho_max)
-    eps = _positive("eps", eps, strict=False)
-    lam = _positive("lam", lam)
-    if lam <= 1:
-        raise ValueError(f"lam must be > 1 (rho grows each iteration); got {lam}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) \
-            or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer; got {max_iter!r}")
-    say = progress if callable(progress) else (lambda msg: None)
+    settings = AdmmSettings(N=N, mu=mu, rho0=rho0, lam=lam, rho_max=rho_max, eps=eps, xi=xi,
+                            gamma=gamma, max_iter=max_iter, init=init, output=output)
+    return _admm(W, R, K, prior, settings, progress)
 
-    Wf = W.reshape(F, 2, P)
-    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
-    X_init = Rt @ Wf                                # pinv(R_f) = R_f' for orthonormal rows
-    sigma = np.linalg.svd(phi(X_init), compute_uv=False)
+
+def solve_admm(W, R, K, prior, settings, progress=None):
+    """The shape stage's ADMM: :func:`optimize_shapes` on ``W / s``,
+    ``s = normalization_scale(W)``, with ``shapes``, ``X_init`` and its singular values
+    returned in W's units (``theta`` and ``history`` stay in the ADMM's units;
+    ``params["admm_scale"]`` is s)."""
+    s = normalization_scale(W)
+    res = _admm(W / s, R, K, prior, settings, progress)
+    res.shapes, res.X_init = res.shapes * s, res.X_init * s
+    res.X_init_singular_values = res.X_init_singular_values * s
+    res.params["admm_scale"] = s
+    return res
+
+
+def _admm_weights(sigma, prior, N, settings):
+    """(theta, mu theta with the first N zeroed, xi) from the singular values of X_init#."""
     if not sigma[0] > 0:
         raise ValueError("the pseudo-inverse shape is zero (W is zero?)")
-    if xi is None:
-        xi = 5e-3 * math.sqrt(float(sigma[0]))     # paper Sec. 4
-    xi = _positive("xi", xi)
-    gamma = _positive("gamma", gamma)
-    theta = shape_weights(sigma, xi, gamma)         # Eq. (9)
+    xi = XI_FACTOR * math.sqrt(float(sigma[0])) if settings.xi is None else settings.xi
+    theta = shape_weights(sigma, xi, settings.gamma)        # Eq. (9)
     if prior == "nuclear":
         # Equal weights (BMM's plain nuclear norm), set so that X_init pays the same
         # penalty as under the weighted norm: c sum_i sigma_i = sum_i theta_i sigma_i.
         theta = np.full_like(sigma, float(theta @ sigma) / float(sigma.sum()))
-    reg_w = mu * theta.copy()
+    reg_w = settings.mu * theta.copy()
     reg_w[:N] = 0.0                                 # partial sum: first N free (Eq. 10)
+    return theta, reg_w, xi
 
-    X = truncate_rank(X_init, K) if init == "rank_k" else X_init.copy()
+
+def _admm(W, R, K, prior, settings, progress):
+    """The ADMM iterations (Notes of :func:`optimize_shapes`)."""
+    if prior not in PRIORS:
+        raise ValueError(f"unknown shape prior {prior!r}; expected one of {sorted(PRIORS)}")
+    W, Rf, F, P = check_shape_inputs(W, R)
+    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
+        raise ValueError(f"K must be a positive integer; got {K!r}")
+    K, st = int(K), settings
+    N = PRIORS[prior] if st.N is None else st.N
+    say = progress if callable(progress) else (lambda msg: None)
+    Wf = W.reshape(F, 2, P)
+    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
+    X_init = Rt @ Wf                                # pinv(R_f) = R_f' for orthonormal rows
+    sigma = np.linalg.svd(phi(X_init), compute_uv=False)
+    theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
+    X = truncate_rank(X_init, K) if st.init == "rank_k" else X_init.copy()
     Xs = phi(X).copy()
     Y = np.zeros_like(Xs)
-    rho = rho0
+    rho = st.rho0
     hist = {k: [] for k in ("cost", "data_term", "residual", "rho")}
     converged = False
     n_iter = 0
-    for n_iter in range(1, max_iter + 1):
+    for n_iter in range(1, st.max_iter + 1):
         # X step (Eq. 13), closed form per frame, vectorised.
         Z = phi_inv(Xs + Y / rho, P)
         X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
@@ -383,57 +318,22 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
         hist["data_term"].append(data)
         hist["residual"].append(resid)
         hist["rho"].append(rho)
-        rho = min(rho_max, lam * rho)
-        if n_iter % 100 == 0:
+        rho = min(st.rho_max, st.lam * rho)
+        if n_iter % PROGRESS_EVERY == 0:
             say(f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
                 f"residual {resid:.3g}, rho {rho:.3g}")
-        if resid < eps:
+        if resid < st.eps:
             converged = True
             break
-        if rho >= rho_max:
+        if rho >= st.rho_max:
             break
     say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
         f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
         f"cost {hist['cost'][-1]:.6g}")
-    shapes = X if output == "X" else phi_inv(Xs, P).copy()
-    params = dict(prior=prior, N=N, K=K, mu=mu, rho0=rho0, lam=lam, rho_max=rho_max, eps=eps,
-                  xi=xi, gamma=gamma, max_iter=int(max_iter), init=init, output=output)
+    shapes = X if st.output == "X" else phi_inv(Xs, P).copy()
+    params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
     return ShapeResult(shapes=shapes, X_init=X_init, X_init_singular_values=sigma,
-                       theta=theta, N=N, prior=prior,
+                       theta=theta, N=N, prior=prior, solver="admm",
                        history={k: np.asarray(v) for k, v in hist.items()},
-                       n_iter=n_iter, converged=converged, params=params)
-
-
-def solve_shapes(W, R, K, prior="organic", solver="admm", **options):
-    """Run one of the shape solvers on ``(W, R)``.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements (for ``admm`` in the units of :mod:`nrsfm.scale`; the
-        other solvers are scale-free).
-    R : (F, 3, 3) or (F, 2, 3) ndarray
-    K : int
-    prior : {"organic", "weighted", "nuclear"}
-        Ignored by ``closed_form`` (an exact rank-K fit has no prior).
-    solver : {"admm", "bilinear", "closed_form"}
-        :func:`optimize_shapes` (the paper's continuation ADMM),
-        :func:`nrsfm.shape_bilinear.optimize_shapes_bilinear` or
-        :func:`nrsfm.shape_bilinear.closed_form_result`.
-    **options
-        Passed to the solver.
-
-    Returns
-    -------
-    ShapeResult or BilinearShapeResult
-    """
-    if solver == "admm":
-        return optimize_shapes(W, R, K, prior=prior, **options)
-    from . import shape_bilinear
-
-    if solver == "bilinear":
-        return shape_bilinear.optimize_shapes_bilinear(W, R, K, prior=prior, **options)
-    if solver == "closed_form":
-        options.pop("progress", None)
-        return shape_bilinear.closed_form_result(W, R, K, **options)
-    raise ValueError(f"unknown shape solver {solver!r}; expected one of {list(SHAPE_SOLVERS)}")
+                       n_iter=n_iter, converged=converged, objective=hist["cost"][-1],
+                       optimality=resid, params=params)

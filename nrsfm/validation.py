@@ -59,31 +59,47 @@ def check_measurements(W, name="W", allow_missing=False):
     return A
 
 
-def check_K(K, F, P):
-    """Check the number of shape bases against the data size: ``1 <= K`` and ``3K <= min(2F, P)``."""
-    if isinstance(K, bool) or not isinstance(K, (int, np.integer)):
-        raise ValueError(f"K must be an integer; got {K!r}")
-    K = int(K)
-    if K < 1:
-        raise ValueError(f"K must be at least 1; got K={K}")
-    if 3 * K > min(2 * F, P):
-        raise ValueError(
-            f"K={K} is too large for the data: a rank-3K factorisation needs "
-            f"3K={3 * K} <= min(2F, P) = min({2 * F}, {P}) = {min(2 * F, P)}")
-    return K
-
-
-def check_centred_rank(K, F, P):
-    """3K against the largest rank a row-centred W can have: ``rank(W) <= min(2F, P - 1)``.
-
-    Centring the rows makes the columns sum to zero, so one direction of the column space
-    is lost; a rank-3K factorisation of such a W is then not determined.
+def check_integer(value, name, minimum=None):
+    """Return ``value`` as an int; a bool, a float or a value below ``minimum`` is refused.
 
     Raises
     ------
     ValueError
-        ``3K > min(2F, P - 1)``, naming both numbers.
+        Naming ``name``, the value and the bound.
     """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer; got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be at least {minimum}; got {name}={value}")
+    return value
+
+
+def check_positive(name, value, strict=True):
+    """Return ``value`` as a float, refusing non-finite values and ``value <= 0``
+    (``value < 0`` when not ``strict``)."""
+    ok = np.isfinite(value) and (value > 0 if strict else value >= 0)
+    if not ok:
+        raise ValueError(f"{name} must be {'positive' if strict else 'non-negative'} "
+                         f"and finite; got {value!r}")
+    return float(value)
+
+
+def check_K(K, F, P):
+    """Check the number of shape bases: ``1 <= K`` and ``3K <= min(2F, P - 1)``.
+
+    The one bound of the package. ``reconstruct`` centres the rows of W, which makes its
+    columns sum to zero: a row-centred W of 2F rows and P points has rank at most
+    ``min(2F, P - 1)``, so a rank-3K factorisation with ``3K = P`` is not determined (its
+    last component is rounding noise). The solvers take centred W, so the same bound holds
+    for them.
+
+    Raises
+    ------
+    ValueError
+        K not an integer, below 1, or 3K above ``min(2F, P - 1)`` (both numbers named).
+    """
+    K = check_integer(K, "K", minimum=1)
     bound = min(2 * F, P - 1)
     if 3 * K > bound:
         raise ValueError(

@@ -7,11 +7,6 @@ Every valid triplet G satisfies, for each frame f with 2 x 3K block ``M_f`` (row
 Stages, each a function named by what it maps:
 
 * :func:`constraint_matrix`: M_hat (2F, 3K) -> A (2F, n(n+1)/2) acting on vech(Q), n = 3K.
-* :func:`solution_space`: A -> basis (n(n+1)/2, 2K^2 - K), the right singular vectors of
-  the smallest singular values.
-* :func:`relaxed_gram`: basis -> Q, Dai's convex relaxation (minimum nuclear norm over the
-  solution space, coefficients summing to 1), solved by a small ADMM (cvxpy + SCS kept
-  for cross-checking).
 * :func:`penalized_gram`: M_hat -> Q, a PSD relaxation (trace plus a penalty on Dai's
   constraint residual, mean squared camera scale fixed to 1).
 * :func:`triplets_from_gram`: Q -> G from the top-3 eigenpairs (or the K column blocks).
@@ -19,11 +14,13 @@ Stages, each a function named by what it maps:
   ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2`` (r1, r2 the rows of M_f G)
   by Levenberg-Marquardt on the 2F residuals with the analytic Jacobian.
 * :func:`search_triplet`: multistart over the relaxations and seeded random starts,
-  stopped once the lowest cost has been reached by two starts (the default).
-* :func:`corrective_triplets`: all of the above, selected by ``starts``.
+  stopped once the lowest cost has been reached by two starts.
+* :func:`corrective_triplets`: the search, as the rotation stage runs it.
 
-Measurements behind these choices (which starts reach the best minimum, with and without
-track noise, and at what cost): ``docs/rotation_stage.md``.
+Dai's own relaxation (minimum nuclear norm over the solution space) and the other starts
+are research variants in :mod:`nrsfm.ablation`. Measurements behind these choices (which
+starts reach the best minimum, with and without track noise, and at what cost):
+``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -34,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
-__all__ = ["constraint_matrix", "solution_space", "relaxed_gram", "triplets_from_gram", "penalized_gram",
+__all__ = ["constraint_matrix", "triplets_from_gram", "penalized_gram",
            "triplet_residuals", "triplet_cost", "refine_triplet", "CorrectiveResult",
            "corrective_triplets", "search_triplet", "SEARCH_LAMBDAS", "gram_from_vech",
            "vech_index"]
@@ -88,142 +85,6 @@ def constraint_matrix(M_hat):
     return A
 
 
-def solution_space(A, K):
-    """Basis of the (approximate) null space of A: the last 2K^2 - K right singular vectors.
-
-    Returns
-    -------
-    basis : (n(n+1)/2, 2K^2 - K) ndarray, orthonormal columns
-    singular_values : ndarray, all singular values of A (for inspection)
-    """
-    d = 2 * K * K - K
-    m = A.shape[1]
-    # The right singular vectors of A are the eigenvectors of A'A (m x m, m <= 2F here is
-    # not guaranteed): eigh of the Gram matrix is 3-5x faster than the SVD of A and accurate
-    # enough for a subspace separated by a large gap.  Rows of A are normalised first so
-    # that every frame counts equally (the constraints are homogeneous in M_f).
-    H = A.T @ A
-    w, V = np.linalg.eigh(H)
-    sv = np.sqrt(np.clip(w[::-1], 0, None))
-    if A.shape[0] < m:          # A'A is rank deficient: the extra null vectors are valid too
-        sv[A.shape[0]:] = 0.0
-    return V[:, :d], sv
-
-
-# ------------------------------------------------------------------------- relaxed SDP
-def _basis_matrices(basis, n):
-    """(d, n, n) symmetric matrices N_i with vech(N_i) = basis[:, i]."""
-    return gram_from_vech(basis, n)
-
-
-def relaxed_gram(basis, K, solver="admm", psd=False, max_iter=5000, tol=1e-6, rho=None,
-                 return_info=False):
-    """Dai's convex relaxation: the minimum nuclear-norm point of the solution space.
-
-    ``minimise ||Q||_*  s.t.  Q = sum_i x_i N_i,  sum_i x_i = 1``  (``vech(N_i)`` the basis
-    vectors). With ``psd=True`` the constraint ``Q PSD`` is added (the nuclear norm is then
-    the trace); on the benchmark that problem is infeasible (noise takes the PSD triplets
-    out of the approximate null space), so the default leaves Q indefinite.
-
-    Parameters
-    ----------
-    basis : (n(n+1)/2, d) ndarray
-        From :func:`solution_space`.
-    K : int
-    solver : {"admm", "cvxpy"}
-        ``admm``: the ADMM below (one symmetric 3K x 3K eigendecomposition per iteration,
-        no compilation). ``cvxpy``: cvxpy + SCS, kept for cross-checking (its problem
-        compilation alone takes seconds at K = 12).
-
-    Returns
-    -------
-    Q : (3K, 3K) ndarray, symmetric, signed so that its largest eigenvalues are positive
-    info : dict (only if ``return_info``)
-    """
-    n = 3 * K
-    N = gram_from_vech(basis, n)                   # (d, n, n)
-    d = N.shape[0]
-    t0 = time.perf_counter()
-    if solver == "cvxpy":
-        import cvxpy as cp
-
-        x = cp.Variable(d)
-        Qe = sum(x[i] * N[i] for i in range(d))
-        if psd:
-            Qv = cp.Variable((n, n), PSD=True)
-            prob = cp.Problem(cp.Minimize(cp.trace(Qv)), [Qv == Qe, cp.sum(x) == 1])
-        else:
-            prob = cp.Problem(cp.Minimize(cp.normNuc(Qe)), [cp.sum(x) == 1])
-        prob.solve(solver=cp.SCS, eps=1e-7, max_iters=50000)
-        if x.value is None:
-            raise RuntimeError(f"cvxpy/SCS: {prob.status}")
-        xv = np.asarray(x.value)
-        Q = np.tensordot(xv, N, axes=1)
-        info = dict(solver="cvxpy-scs", status=prob.status, x=xv)
-    elif solver == "admm":
-        Q, info = _admm_nuclear(N, psd, max_iter, tol, rho)
-    else:
-        raise ValueError(f"unknown solver {solver!r}")
-    Q = 0.5 * (Q + Q.T)
-    w = np.linalg.eigvalsh(Q)
-    if w[-3:].sum() < -w[:3].sum():                # dominant part negative: use -Q
-        Q = -Q
-    info["seconds"] = time.perf_counter() - t0
-    return (Q, info) if return_info else Q
-
-
-def _admm_nuclear(N, psd, max_iter, tol, rho):
-    """ADMM for ``min ||Z||_*  s.t. Z = sum x_i N_i, 1'x = 1 [, Z PSD]``.
-
-    x-step: least squares with one linear equality (precomputed inverse); Z-step:
-    eigenvalue soft-thresholding of a symmetric matrix (clipped at 0 when ``psd``).
-    """
-    d, n, _ = N.shape
-    A = N.reshape(d, n * n).T                     # (n^2, d): vec(Q) = A x
-    H = A.T @ A
-    Hinv = np.linalg.inv(H + 1e-12 * np.trace(H) / d * np.eye(d))
-    one = np.ones(d)
-    Hinv1 = Hinv @ one
-    s1 = one @ Hinv1
-    x = Hinv1 / s1                                # least-norm point with 1'x = 1
-    Qx = (A @ x).reshape(n, n)
-    # rho in units of the problem's scale (the nuclear norm is 1-homogeneous)
-    rho = 1.0 / max(np.abs(np.linalg.eigvalsh(Qx)).max(), 1e-12) if rho is None else rho
-    Z = Qx.copy()
-    U = np.zeros((n, n))
-    status = "max_iter"
-    it = 0
-    rn = sn = np.inf
-    for it in range(max_iter):
-        y = Hinv @ (A.T @ (Z - U).ravel())
-        x = y - ((one @ y - 1.0) / s1) * Hinv1
-        Qx = (A @ x).reshape(n, n)
-        V = Qx + U
-        w, E = np.linalg.eigh(0.5 * (V + V.T))
-        thr = 1.0 / rho
-        wp = np.clip(w - thr, 0, None) if psd else np.sign(w) * np.clip(np.abs(w) - thr, 0, None)
-        Z_old = Z
-        Z = (E * wp) @ E.T
-        r = Qx - Z
-        U = U + r
-        rn = np.linalg.norm(r)
-        sn = rho * np.linalg.norm(Z - Z_old)
-        scale = max(np.linalg.norm(Z), 1e-12)
-        if rn < tol * scale and np.linalg.norm(Z - Z_old) < tol * scale and it > 10:
-            status = "converged"
-            break
-        if it % 10 == 9:                          # residual balancing (Boyd et al. 3.4.1)
-            dual = np.linalg.norm(Z - Z_old) * rho
-            if rn * rho > 10 * dual / rho * rho and rn > 10 * np.linalg.norm(Z - Z_old):
-                rho *= 2.0
-                U /= 2.0
-            elif np.linalg.norm(Z - Z_old) > 10 * rn:
-                rho /= 2.0
-                U *= 2.0
-    return Qx, dict(solver="admm", status=status, iterations=it + 1, rho=float(rho),
-                    primal_residual=float(rn), x=x)
-
-
 def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
                    return_info=False, _cache=None):
     """A convex relaxation that does land near the best triplet on the benchmark.
@@ -234,7 +95,7 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
     with ``a = trace(M'M) / (2F 3K)`` (so that both terms are dimensionless). The
     constraint residual of Dai's equations is penalised instead of imposed (the exact
     intersection of the approximate null space with the PSD cone is empty on real data,
-    see :func:`relaxed_gram`), the normalisation fixes the mean squared camera scale
+    see :func:`nrsfm.ablation.relaxed_gram`), the normalisation fixes the mean squared camera scale
     ``mean_f |c_f|^2`` to 1 instead of an arbitrary sum of basis coefficients, and the
     trace (nuclear norm on the PSD cone) pushes the solution to low rank. Which ``lam``
     reaches the best minimum with and without noise: ``docs/rotation_stage.md``.
@@ -653,127 +514,39 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
     return (np.stack([mn[1] for mn in minima]), np.array([mn[0] for mn in minima]), info)
 
 
-def corrective_triplets(M_hat, K, starts="search", seed=0, n_random=32, n_full=4,
-                        screen_frames=80, screen_iter=30, sdp_solver="admm", refine="lm",
-                        lam=1e2, gram="penalized", hits=2, max_starts=40):
+def corrective_triplets(M_hat, K, seed=0, hits=2, max_starts=40, sdp_solver="admm",
+                        refine="lm"):
     """Corrective triplet(s) from the motion factor, best (lowest Dai cost) first.
+
+    :func:`search_triplet`: the relaxation at the penalties :data:`SEARCH_LAMBDAS`, then
+    seeded random starts, until the lowest cost has been reached by ``hits`` starts (at
+    most ``max_starts``). Other starts (Dai's relaxation, its column blocks, a screened
+    multistart) are research variants: :func:`nrsfm.ablation.corrective_triplets_from`.
 
     Parameters
     ----------
     M_hat : (2F, 3K) ndarray
     K : int
-    starts : {"search", "relaxed", "dai", "columns", "multistart"}
-        Where the refinement starts.
-
-        * ``search`` (default): :func:`search_triplet` (``hits``, ``max_starts``): the
-          relaxation at the penalties :data:`SEARCH_LAMBDAS`, then seeded random starts,
-          until the lowest cost has been reached by ``hits`` starts.
-        * ``relaxed``: the top-3 eigenpairs of :func:`penalized_gram` (PSD, trace +
-          penalised constraint residual, mean camera scale 1): one refinement.
-        * ``dai``: the top-3 eigenpairs of Dai's relaxation as specified
-          (:func:`relaxed_gram`).
-        * ``columns``: the K column blocks of the relaxed Gram matrix (``gram`` selects
-          which relaxation), each refined on all frames: the paper's "K column triplets"
-          read literally.
-        * ``multistart``: the ``relaxed`` and ``dai`` starts, the K column blocks of the
-          nuclear-norm relaxation and ``n_random`` seeded Gaussian starts, each refined for
-          ``screen_iter`` LM iterations on about ``screen_frames`` evenly spaced frames;
-          the ``n_full`` lowest screened costs are refined on all frames.
     seed : int
         Seed of the random starts.
     hits, max_starts : int
-        Stopping rule of ``starts="search"``.
-    lam : float
-        Penalty of :func:`penalized_gram`.
-    gram : {"penalized", "nuclear"}
-        Relaxation whose column blocks ``starts="columns"`` uses.
+        Stopping rule of the search.
+    sdp_solver : {"admm", "cvxpy"}
+    refine : {"lm", "minpack", "lbfgs"}
 
     Returns
     -------
     CorrectiveResult
         ``G`` sorted by cost (``G[0]`` is the best triplet); ``info["starts"]`` names each
-        row's start.
+        row's start, ``info["search"]`` the search's record.
     """
     M = np.asarray(M_hat, float)
-    n = 3 * K
-    F = M.shape[0] // 2
-    timings = {}
-    if starts not in ("search", "relaxed", "dai", "columns", "multistart"):
-        raise ValueError(f"unknown starts {starts!r}")
-    if starts == "search":
-        t0 = time.perf_counter()
-        G, costs, sinfo = search_triplet(M, K, seed=seed, hits=hits, max_starts=max_starts,
-                                         sdp_solver=sdp_solver, refine=refine)
-        Q = sinfo.pop("Q")
-        timings["search"] = time.perf_counter() - t0
-        sinfo["search"] = {k: sinfo[k] for k in ("n_starts", "n_random", "hits", "counts",
-                                                 "history", "stopped", "miss_bound")}
-        return CorrectiveResult(G=G, G_init=G.copy(), Q=Q, costs=costs, info=sinfo,
-                                timings=timings)
-    need_pen = starts in ("relaxed", "multistart") or (starts == "columns" and
-                                                        gram == "penalized")
-    need_nuc = starts in ("dai", "multistart") or (starts == "columns" and gram == "nuclear")
-    Q = None
-    info = {}
     t0 = time.perf_counter()
-    if need_pen:
-        Q_pen, pen_info = penalized_gram(M, K, lam=lam, solver=sdp_solver, return_info=True)
-        info["penalized"] = pen_info
-        Q = Q_pen
-    if need_nuc:
-        A = constraint_matrix(M)
-        basis, sv = solution_space(A, K)
-        Q_nuc, nuc_info = relaxed_gram(basis, K, solver=sdp_solver, return_info=True)
-        info["nuclear"] = {k: v for k, v in nuc_info.items() if k != "x"}
-        info["singular_values"] = sv
-        Q = Q_nuc if Q is None else Q
-    timings["sdp"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    cands = []
-    if starts in ("relaxed", "multistart"):
-        cands.append(("relaxed", triplets_from_gram(Q_pen, "eig")[0]))
-    if starts in ("dai", "multistart"):
-        cands.append(("dai", triplets_from_gram(Q_nuc, "eig")[0]))
-    if starts == "columns":
-        Qc = Q_pen if gram == "penalized" else Q_nuc
-        cands += [(f"column{k}", G) for k, G in enumerate(triplets_from_gram(Qc, "columns"))]
-    if starts == "multistart":
-        cands += [(f"column{k}", G) for k, G in enumerate(triplets_from_gram(Q_nuc, "columns"))]
-        rng = np.random.default_rng(seed)
-        cands += [(f"random{i}", rng.standard_normal((n, 3))) for i in range(n_random)]
-
-    screened = None
-    if starts == "multistart" and len(cands) > n_full:
-        step = max(1, F // max(screen_frames, 1))
-        sub = np.zeros(F)
-        sub[::step] = 1.0
-        scores = []
-        for name, G0 in cands:
-            G, inf = refine_triplet(G0, M, weights=sub, method=refine, max_iter=screen_iter)
-            scores.append(inf["cost"] if np.isfinite(inf["cost"]) else np.inf)
-        order = np.argsort(scores, kind="stable")[:n_full]
-        screened = dict(names=[c[0] for c in cands], costs=np.array(scores))
-        cands = [cands[i] for i in order]
-    timings["screen"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    Gs, costs, infos, G_init = [], [], [], []
-    for name, G0 in cands:
-        if refine:
-            G, inf = refine_triplet(G0, M, method=refine)
-        else:
-            G = _normalise_triplet(G0, M)
-            inf = dict(cost=triplet_cost(G, M))
-        inf["start"] = name
-        Gs.append(G)
-        G_init.append(G0)
-        costs.append(inf["cost"] if np.isfinite(inf["cost"]) else np.inf)
-        infos.append(inf)
-    order = np.argsort(costs, kind="stable")
-    timings["refine"] = time.perf_counter() - t0
-    info.update(refine=[infos[i] for i in order], starts=[infos[i]["start"] for i in order],
-                screen=screened)
-    return CorrectiveResult(G=np.stack([Gs[i] for i in order]),
-                            G_init=np.stack([G_init[i] for i in order]), Q=Q,
-                            costs=np.array(costs)[order], info=info, timings=timings)
+    G, costs, sinfo = search_triplet(M, K, seed=seed, hits=hits, max_starts=max_starts,
+                                     sdp_solver=sdp_solver, refine=refine)
+    Q = sinfo.pop("Q")
+    timings = {"search": time.perf_counter() - t0}
+    sinfo["search"] = {k: sinfo[k] for k in ("n_starts", "n_random", "hits", "counts",
+                                             "history", "stopped", "miss_bound")}
+    return CorrectiveResult(G=G, G_init=G.copy(), Q=Q, costs=costs, info=sinfo,
+                            timings=timings)

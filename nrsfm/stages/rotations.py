@@ -1,0 +1,606 @@
+"""Rotation stage (paper Sec. 3.1): triplets -> per-triplet rotations -> registration ->
+filtering -> per-frame L1 single rotation averaging -> family combination -> depth signs.
+
+Conventions
+-----------
+* A triplet G (3K x 3) maps frame f's 2 x 3K block to ``M_f G = c_f R_f[:2]`` (a scaled
+  orthographic camera).  Lifting it to SO(3) (:func:`rotations_from_triplets`) gives
+  ``R_f`` when ``c_f > 0`` and ``diag(-1, -1, 1) R_f`` ("depth reversal" of frame f: the
+  same image with the shape negated) when ``c_f < 0``; a triplet may also come out with
+  the opposite handedness (``diag(1, 1, -1) R_f D``, D = diag(1, 1, -1)), which equals the
+  depth reversal of every frame times a fixed rotation, so the per-frame flips absorb it.
+* Registration (:func:`register_rotations`) solves Eq. 3 with one R_reg in SO(3) per
+  triplet plus a per-frame choice of I or diag(-1, -1, 1).
+* The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
+  :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
+
+Where the K triplets come from (the paper says only "using Dai et al." for every k): the
+best triplet from :func:`nrsfm.stages.corrective.corrective_triplets`, K - 1 triplets
+refined on temporal windows, and (``organic``) the K-dimensional family of triplets
+consistent with their average, combined per frame by signal-to-noise weights
+(:func:`triplet_family`, :func:`combine_family`). :func:`estimate_rotations` runs the
+``organic`` and ``bmm`` strategies with a :class:`nrsfm.settings.RotationSettings`; the
+research strategies are in :mod:`nrsfm.ablation`. The measurements behind these choices
+are in ``docs/rotation_stage.md``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import average_rotations, procrustes_so3, project_to_so3, rotation_angle
+from ..settings import RotationAblationSettings, RotationSettings
+from .corrective import corrective_triplets, refine_triplet, triplet_cost
+
+__all__ = ["FLIP", "MIRROR", "RotationResult", "combine_family",
+           "estimate_rotations", "filter_rotations", "register_rotations",
+           "register_triplets", "resolve_depth_signs", "rotations_from_triplet_set",
+           "rotations_from_triplets", "triplet_family", "triplets_on_subsets",
+           "window_weights"]
+
+FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
+MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
+#: a lifted frame is degenerate when |r1 x r2| is below this (parallel rows)
+DEGENERATE_CROSS = 1e-8
+#: ... or a row norm below this fraction of the largest camera scale
+DEGENERATE_ROW = 1e-12
+#: at least this many frames in a window triplet
+MIN_WINDOW_FRAMES = 8
+
+
+# --------------------------------------------------------------------------- lifting
+def rotations_from_triplets(M_hat, G, handedness=1):
+    """Per-triplet, per-frame rotations from ``M_f G^k``.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    G : (m, 3K, 3) or (3K, 3) ndarray
+    handedness : {1, -1}
+        -1 negates the third column of every 2 x 3 block before lifting.
+
+    Returns
+    -------
+    R : (m, F, 3, 3) ndarray in SO(3)
+        Rows scaled to unit length, ``r3 = r1 x r2``, projected onto SO(3). Never NaN: a
+        frame where ``M_f G`` is degenerate (a zero row or parallel rows) gets the
+        identity and ``valid`` False.
+    coefficients : (m, F) ndarray
+        ``|c_fk|``: RMS norm of the two rows of ``M_f G^k``.
+    valid : (m, F) bool
+    """
+    G = np.asarray(G, float)
+    single = G.ndim == 2
+    if single:
+        G = G[None]
+    M = np.asarray(M_hat, float)
+    F = M.shape[0] // 2
+    B = np.einsum("ri,kij->krj", M, G).reshape(G.shape[0], F, 2, 3)
+    if handedness == -1:
+        B = B * np.array([1.0, 1.0, -1.0])
+    norms = np.linalg.norm(B, axis=3)                             # (m, F, 2)
+    coef = np.sqrt(0.5 * (norms ** 2).sum(axis=2))
+    scale = np.max(coef, axis=1, keepdims=True)
+    tiny = DEGENERATE_ROW * np.where(scale > 0, scale, 1.0)
+    ok_rows = norms > tiny[..., None]
+    U = B / np.where(ok_rows, norms, 1.0)[..., None]
+    r3 = np.cross(U[:, :, 0], U[:, :, 1])
+    valid = ok_rows.all(axis=2) & (np.linalg.norm(r3, axis=2) > DEGENERATE_CROSS)
+    L = np.concatenate([U, r3[:, :, None]], axis=2)
+    L = np.where(valid[..., None, None], L, np.eye(3))
+    R = project_to_so3(L)
+    coef = np.where(valid, coef, 0.0)
+    if single:
+        return R[0], coef[0], valid[0]
+    return R, coef, valid
+
+
+# --------------------------------------------------------------------------- registration
+def _register_one(R_ref, R_k, w, max_iter=20):
+    """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
+    # Start from the third rows (a frame's depth reversal leaves them unchanged):
+    # maximise sum_f w_f r3_ref . (R r3_k)  ->  N = sum_f w_f r3_ref r3_k'.
+    N = np.einsum("f,fi,fj->ij", w, R_ref[:, 2], R_k[:, 2])
+    R = procrustes_so3(N)
+    flips = np.zeros(len(R_k), bool)
+    for _ in range(max_iter):
+        X = R_k @ R.T                                               # R_k R_reg'
+        # flipping rows 1-2 of X changes trace(R_ref' X) by -2 (d1 + d2)
+        d12 = np.einsum("fij,fij->f", R_ref[:, :2], X[:, :2])
+        new_flips = d12 < 0
+        S = np.where(new_flips[:, None, None], FLIP @ R_k, R_k)
+        # refit: maximise sum_f w_f trace(R_ref' S R') = trace(R' N), N = sum w S' R_ref
+        N = np.einsum("f,fki,fkj->ij", w, S, R_ref).T
+        R_new = procrustes_so3(N)
+        if np.array_equal(new_flips, flips) and np.allclose(R_new, R, atol=1e-12):
+            flips, R = new_flips, R_new
+            break
+        flips, R = new_flips, R_new
+    S = np.where(flips[:, None, None], FLIP @ R_k, R_k)
+    cost = float(np.sum(w * np.sum((R_ref - S @ R.T) ** 2, axis=(1, 2))))
+    return R, flips, cost
+
+
+def register_rotations(R_ref, R_k, weights=None, handedness="both"):
+    """Register one triplet's rotations onto the reference (Eq. 3, flip-aware).
+
+    Minimises ``sum_f w_f || R_ref,f - s_f H(R_k,f) R_reg' ||_F^2`` over R_reg in SO(3),
+    per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"``, the
+    handedness ``H`` (identity, or ``R -> diag(1, 1, -1) R diag(1, 1, -1)``, the lift of
+    the mirrored 2 x 3 blocks). Closed-form SO(3) Procrustes started from the third rows,
+    then alternation between the flips and R_reg (converges in a few steps).
+
+    Parameters
+    ----------
+    R_ref, R_k : (F, 3, 3) ndarray
+    weights : (F,) ndarray, optional
+        0 leaves a frame out of the fit (its flip is still chosen).
+    handedness : {"both", "same"}
+
+    Returns
+    -------
+    registered : (F, 3, 3) ndarray
+        ``s_f H(R_k,f) R_reg'``.
+    R_reg : (3, 3) ndarray
+        In the sense of Eq. 3 (for the mirrored handedness, applied after the mirror).
+    flips : (F,) bool
+    mirrored : bool
+    cost : float
+    """
+    R_ref = np.asarray(R_ref, float)
+    R_k = np.asarray(R_k, float)
+    w = np.ones(len(R_k)) if weights is None else np.asarray(weights, float)
+    best = None
+    options = [False, True] if handedness == "both" else [False]
+    for mirrored in options:
+        Rk = MIRROR @ R_k @ MIRROR if mirrored else R_k
+        R, flips, cost = _register_one(R_ref, Rk, w)
+        if best is None or cost < best[3] - 1e-12:
+            best = (R, flips, mirrored, cost, Rk)
+    R, flips, mirrored, cost, Rk = best
+    S = np.where(flips[:, None, None], FLIP @ Rk, Rk)
+    return S @ R.T, R, flips, mirrored, cost
+
+
+# --------------------------------------------------------------------------- filtering
+def filter_rotations(registered, reference, delta=0.05, metric="angle", valid=None):
+    """Keep the samples within ``delta`` of the reference (paper: delta = 0.05).
+
+    Parameters
+    ----------
+    registered : (m, F, 3, 3) ndarray
+    reference : (F, 3, 3) ndarray
+    delta : float
+    metric : {"angle", "chordal"}
+        ``angle``: geodesic angle in radians, the metric the L1 average minimises (0.05 rad
+        = 2.9 degrees). ``chordal``: ``||R - R_ref||_F`` (= 2 sqrt(2) sin(angle / 2),
+        so 0.05 is 2.0 degrees).
+    valid : (m, F) bool, optional
+        Samples already known to be unusable.
+
+    Returns
+    -------
+    kept : (m, F) bool
+    distance : (m, F) ndarray
+    """
+    if metric == "angle":
+        dist = rotation_angle(registered, reference[None])
+    elif metric == "chordal":
+        dist = np.linalg.norm(registered - reference[None], axis=(-2, -1))
+    else:
+        raise ValueError(f"unknown metric {metric!r}")
+    kept = dist <= delta
+    if valid is not None:
+        kept &= valid
+    return kept, dist
+
+
+# --------------------------------------------------------------------------- depth sign
+def resolve_depth_signs(R):
+    """Per-frame depth sign by motion smoothness (Dai's rule).
+
+    Frame f is replaced by ``diag(-1, -1, 1) R_f`` when that is closer to the (resolved)
+    frame f - 1, i.e. when the two cameras' rows disagree by more than 90 degrees on
+    average (``r1.r1' + r2.r2' < 0``).
+
+    Returns
+    -------
+    R : (F, 3, 3) ndarray
+    flipped : (F,) bool, frames changed
+    """
+    R = np.array(R, float, copy=True)
+    F = len(R)
+    flipped = np.zeros(F, bool)
+    # d_f = agreement of frame f with frame f-1 (unresolved); resolving sequentially only
+    # needs the parity of the flips so far.
+    d = np.einsum("fij,fij->f", R[1:, :2], R[:-1, :2])
+    parity = np.cumsum(np.concatenate([[0], (d < 0).astype(int)])) % 2
+    flipped = parity.astype(bool)
+    R[flipped] = FLIP @ R[flipped]
+    return R, flipped
+
+
+# --------------------------------------------------------------------------- windows
+def window_weights(F, n_windows, window):
+    """Frame weights of ``n_windows`` contiguous temporal windows of ``window * F`` frames
+    (at least :data:`MIN_WINDOW_FRAMES`), starts spread evenly from the first to the last
+    possible frame.
+
+    Returns
+    -------
+    weights : list of (F,) ndarrays (1 inside the window)
+    spans : list of (start, stop)
+    """
+    L = int(min(F, max(MIN_WINDOW_FRAMES, round(window * F))))
+    starts = np.round(np.linspace(0, F - L, n_windows)).astype(int) \
+        if n_windows > 1 else np.array([0])
+    weights, spans = [], []
+    for s in starts[:n_windows]:
+        w = np.zeros(F)
+        w[s:s + L] = 1.0
+        weights.append(w)
+        spans.append((s, s + L))
+    return weights, spans
+
+
+def triplets_on_subsets(M_hat, G0, weights, method="lm"):
+    """Triplets refined from ``G0`` on weighted subsets of the frames.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    G0 : (3K, 3) ndarray
+    weights : list of (F,) ndarrays
+        Frame weights of each subset (e.g. :func:`window_weights`).
+
+    Returns
+    -------
+    G : (n, 3K, 3) ndarray
+    costs : (n,) ndarray, Dai's cost per frame on each subset
+    """
+    Gs, costs = [], []
+    for w in weights:
+        G, inf = refine_triplet(G0, M_hat, weights=w, method=method)
+        Gs.append(G)
+        costs.append(inf["cost"] / w.sum())
+    return np.stack(Gs), np.array(costs)
+
+
+# --------------------------------------------------------------------------- combining
+def triplet_family(M_hat, R, K):
+    """The K triplets most consistent with given rotations: ``M_f G ~ c_f R_f[:2]``.
+
+    For fixed rotations the valid triplets form a linear family (``G_full (a (x) I_3)``,
+    a in R^K, for the true corrective matrix G_full): the null space of the map
+    ``G -> (I - P_f) vec(M_f G)`` over all frames, P_f the projection onto ``R_f[:2]``.
+    Returned: the K eigenvectors of its Gram matrix with the smallest eigenvalues.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    R : (F, 3, 3) ndarray
+    K : int
+
+    Returns
+    -------
+    G : (K, 3K, 3) ndarray, unit Frobenius norm each
+    eigenvalues : (K,) ndarray, relative to the largest one (small = consistent)
+    """
+    M = np.asarray(M_hat, float)
+    F, n = M.shape[0] // 2, M.shape[1]
+    Mf = M.reshape(F, 2, n)
+    # vec(M_f G) (row-major 2 x 3) = A_f vec(G), vec(G) row-major (3K x 3)
+    A = np.einsum("fil,jm->fijlm", Mf, np.eye(3)).reshape(F, 6, 3 * n)
+    r = np.asarray(R, float)[:, :2].reshape(F, 6) / np.sqrt(2.0)
+    PA = A - r[:, :, None] * np.einsum("fa,faj->fj", r, A)[:, None, :]
+    H = A.reshape(-1, 3 * n).T @ PA.reshape(-1, 3 * n)
+    w, V = np.linalg.eigh(0.5 * (H + H.T))
+    return V[:, :K].T.reshape(K, n, 3), w[:K] / max(w[-1], 1e-300)
+
+
+def combine_family(M_hat, G, R_ref, singular_values=None):
+    """Per-frame maximum-ratio combination of the K family triplets' camera blocks.
+
+    Each block ``B_fk = M_f G^k`` is ``c_fk R_f[:2]`` plus noise whose variance is
+    proportional to ``g_k = ||S^-1/2 G^k||_F^2`` (noise on W reaches M_hat through
+    ``S^-1/2``, S the top 3K singular values). The combination
+    ``sum_k (c_fk / g_k) B_fk`` (``c_fk = <B_fk, R_ref,f[:2]> / 2``, each triplet's
+    3 x 3 gauge first aligned to ``R_ref`` by Procrustes) weights every sample by its
+    signal-to-noise ratio; its rows, completed by their cross product and projected onto
+    SO(3), give R_f.
+
+    Returns
+    -------
+    R : (F, 3, 3) ndarray
+    weights : (K, F) ndarray, ``c_fk^2 / g_k`` (the samples' relative information)
+    """
+    M = np.asarray(M_hat, float)
+    F = M.shape[0] // 2
+    s = np.sum(M ** 2, axis=0) if singular_values is None else \
+        np.asarray(singular_values, float)[:M.shape[1]]
+    ref = np.asarray(R_ref, float)[:, :2]
+    B = np.einsum("ri,kij->krj", M, G).reshape(len(G), F, 2, 3)
+    S = np.zeros((F, 2, 3))
+    weights = np.zeros((len(G), F))
+    for k in range(len(G)):
+        g = float(np.sum(G[k] ** 2 / s[:, None]))
+        c = np.einsum("fij,fij->f", B[k], ref)
+        N = np.einsum("f,fij,fik->jk", np.sign(c), B[k], ref)       # gauge (Procrustes)
+        Bk = B[k] @ procrustes_so3(N)
+        c = 0.5 * np.einsum("fij,fij->f", Bk, ref)
+        S += (c / g)[:, None, None] * Bk
+        weights[k] = c ** 2 / g
+    L = np.concatenate([S, np.cross(S[:, 0], S[:, 1])[:, None]], axis=1)
+    bad = ~(np.linalg.norm(L[:, 2], axis=1) > 0)
+    L[bad] = np.asarray(R_ref, float)[bad]
+    return project_to_so3(L), weights
+
+
+# --------------------------------------------------------------------------- result
+@dataclass
+class RotationResult:
+    """Output of :func:`estimate_rotations` (every intermediate of the rotation stage).
+
+    Attributes
+    ----------
+    rotations : (F, 3, 3) ndarray
+        Final per-frame rotations in SO(3) (depth sign resolved by smoothness).
+    G : (m, 3K, 3) ndarray
+        The triplets G^k (m = K for the averaging strategies, 1 for ``bmm``).
+    per_triplet : (m, F, 3, 3) ndarray
+        Lifted rotations R^k before registration.
+    coefficients : (m, F) ndarray
+        ``|c_fk|``, RMS norm of the rows of ``M_f G^k``.
+    registration : (m, 3, 3) ndarray
+        R_reg^k (identity for k = 0).
+    registered : (m, F, 3, 3) ndarray
+        After registration and flip handling.
+    kept : (m, F) bool
+        Samples that passed the filter.
+    averaged : (F, 3, 3) ndarray
+        The L1 average (before the smoothness sign rule).
+    sign_from_smoothness : (F,) bool
+        Frames whose depth sign was changed by the motion-smoothness rule.
+    strategy : str
+    params : dict
+    timings : dict
+    info : dict
+        Triplet costs, their starts, flips, handedness, filter distances, ...
+    """
+
+    rotations: np.ndarray
+    G: np.ndarray
+    per_triplet: np.ndarray
+    coefficients: np.ndarray
+    registration: np.ndarray
+    registered: np.ndarray
+    kept: np.ndarray
+    averaged: np.ndarray
+    sign_from_smoothness: np.ndarray
+    strategy: str
+    params: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n_triplets(self):
+        return self.G.shape[0]
+
+
+# --------------------------------------------------------------------------- entry point
+def check_motion(M_hat, K):
+    """M_hat as a float (2F, 3K) array; ValueError naming the shape otherwise."""
+    M = np.asarray(M_hat, float)
+    if M.ndim != 2 or M.shape[1] != 3 * K or M.shape[0] % 2:
+        raise ValueError(f"M_hat must have shape (2F, 3K) = (2F, {3 * K}); got {M.shape}")
+    return M
+
+
+def _say(progress):
+    return progress if callable(progress) else (lambda msg: None)
+
+
+def record_search(cor, info, say):
+    """Step 1a: record the triplet search (a CorrectiveResult) into ``info``."""
+    info.update(corrective_costs=cor.costs, corrective_starts=cor.info["starts"],
+                corrective_search=cor.info.get("search"),
+                sdp={k: cor.info[k] for k in ("penalized", "nuclear") if k in cor.info},
+                corrective_timings=cor.timings)
+    say(f"best corrective triplet: Dai cost {cor.costs[0]:.4g} "
+        f"(start {cor.info['starts'][0]})")
+    return cor
+
+
+def production_triplets(M, K, settings, seed, info, say):
+    """Step 1: the best triplet, and for ``organic`` K - 1 more on temporal windows."""
+    cor = corrective_triplets(M, K, seed=seed, sdp_solver=settings.sdp_solver,
+                              refine=settings.refine, hits=settings.hits,
+                              max_starts=settings.max_starts)
+    G_best = record_search(cor, info, say).G[0]
+    m = int(settings.n_triplets or K)
+    if settings.strategy == "bmm" or m == 1:
+        return G_best[None]
+    weights, spans = window_weights(M.shape[0] // 2, m - 1, settings.window)
+    Gw, wcost = triplets_on_subsets(M, G_best, weights, method=settings.refine)
+    info.update(window_spans=np.array(spans), window_costs=wcost)
+    return np.concatenate([G_best[None], Gw])
+
+
+def register_triplets(per_triplet, valid):
+    """Step 3: register every triplet's rotations onto the first one's (Eq. 3).
+
+    Returns
+    -------
+    registered : (m, F, 3, 3) ndarray
+    registration : (m, 3, 3) ndarray
+    info : dict (flips, mirrored, registration_cost)
+    """
+    m, F = per_triplet.shape[:2]
+    registered = np.empty_like(per_triplet)
+    registration = np.tile(np.eye(3), (m, 1, 1))
+    flips = np.zeros((m, F), bool)
+    mirrored = np.zeros(m, bool)
+    reg_cost = np.zeros(m)
+    registered[0] = per_triplet[0]
+    ref_w = valid[0].astype(float)
+    for k in range(1, m):
+        registered[k], registration[k], flips[k], mirrored[k], reg_cost[k] = \
+            register_rotations(per_triplet[0], per_triplet[k], weights=ref_w * valid[k])
+    return registered, registration, dict(flips=flips, mirrored=mirrored,
+                                          registration_cost=reg_cost)
+
+
+def sample_weights(coef, valid, settings):
+    """Step 4a: the usable samples (validly lifted) and their weights in the average (1)."""
+    usable = valid.copy()
+    return usable, np.where(usable, 1.0, 0.0)
+
+
+def filter_samples(registered, usable, weights, settings, metric="angle"):
+    """Step 4b: keep the samples within ``settings.delta`` of the reference triplet's
+    rotations or of the L1 average of all samples (``settings.filter_against``); a frame
+    with no sample left falls back on the reference."""
+    if settings.filter_against == "reference":
+        kept, dist = filter_rotations(registered, registered[0], settings.delta, metric,
+                                      usable)
+    elif settings.filter_against == "average":
+        pre = average_rotations(registered, usable, weights, settings.max_iter, settings.eps)
+        kept, dist = filter_rotations(registered, pre, settings.delta, metric, usable)
+    else:
+        kept, dist = usable.copy(), np.zeros(usable.shape)
+    kept[0] |= ~kept.any(axis=0) & usable[0]
+    return kept, dist
+
+
+def average_samples(registered, kept, weights, settings):
+    """Step 5: per-frame weighted L1 average (Alg. 1) of the kept samples."""
+    return average_rotations(registered, kept, np.where(weights > 0, weights, 1.0),
+                             settings.max_iter, settings.eps, return_info=True)
+
+
+def combine_triplets(M, K, R, settings, info):
+    """Step 6 (``combine="family"``): the family of triplets consistent with ``R``,
+    combined per frame by maximum-ratio weights, alternated at most ``combine_iter`` times
+    until the median per-frame change (rad) is below ``combine_tol``."""
+    sv = np.sum(M ** 2, axis=0)                            # M_hat = U sqrt(S): |col|^2 = s
+    steps = []
+    for _ in range(settings.combine_iter):
+        G_fam, fam_eig = triplet_family(M, R, K)
+        new, fam_w = combine_family(M, G_fam, R, sv)
+        steps.append(float(np.median(rotation_angle(new, R))))
+        R = new
+        if steps[-1] < settings.combine_tol:
+            break
+    info.update(G_family=G_fam, family_eigenvalues=fam_eig, family_weights=fam_w,
+                combine_steps=np.array(steps))
+    return R
+
+
+class _Clock:
+    """Seconds per step, recorded into ``timings``."""
+
+    def __init__(self, timings):
+        self.timings, self.t0 = timings, time.perf_counter()
+
+    def lap(self, name):
+        t = time.perf_counter()
+        self.timings[name] = t - self.t0
+        self.t0 = t
+
+
+def rotations_from_triplet_set(M, K, G, settings, *, info, timings, say, seed=0,
+                               weigh=sample_weights, average=average_samples, refit=None,
+                               metric="angle"):
+    """Steps 2-7 for given triplets G (m, 3K, 3): lift, register, filter, average,
+    combine, depth signs. ``weigh``, ``average``, ``refit`` and ``metric`` are the
+    replaceable steps (:mod:`nrsfm.ablation` passes its variants)."""
+    clock = _Clock(timings)
+    info["triplet_costs"] = np.array([triplet_cost(g, M) for g in G])
+    per_triplet, coef, valid = rotations_from_triplets(M, G)
+    clock.lap("lift")
+    registered, registration, reg_info = register_triplets(per_triplet, valid)
+    info.update(reg_info)
+    clock.lap("registration")
+    usable, weights = weigh(coef, valid, settings)
+    kept, dist = filter_samples(registered, usable, weights, settings, metric)
+    info.update(filter_distance=dist)
+    clock.lap("filtering")
+    averaged, avg_info = average(registered, kept, weights, settings)
+    if np.any(avg_info["empty"]):                          # frames with no usable sample
+        averaged = _fill_empty(averaged, avg_info["empty"])
+    info.update(averaging_iterations=avg_info["iterations"], empty_frames=avg_info["empty"])
+    clock.lap("averaging")
+    final = averaged
+    if refit is not None and len(G) > 1:
+        final = refit(M, G, averaged, info)
+        clock.lap("refit")
+    if settings.combine == "family" and K > 1:
+        final = combine_triplets(M, K, final, settings, info)
+        clock.lap("combine")
+    rotations, flipped = resolve_depth_signs(final)
+    say(f"rotations: {len(G)} triplet(s), {kept.sum()} of {kept.size} samples kept, "
+        f"{int(flipped.sum())} frames' depth sign from smoothness")
+    params = dict(vars(settings), seed=seed, K=K, n_triplets=len(G))
+    return RotationResult(rotations=rotations, G=G, per_triplet=per_triplet,
+                          coefficients=coef, registration=registration,
+                          registered=registered, kept=kept, averaged=averaged,
+                          sign_from_smoothness=flipped, strategy=settings.strategy,
+                          params=params, timings=timings, info=info)
+
+
+def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
+    """Camera rotations from the rank-3K motion factor (``organic`` or ``bmm``).
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+        The motion factor of the measurement stage (:mod:`nrsfm.stages.measurement`).
+    K : int
+    settings : nrsfm.settings.RotationSettings, optional
+        Default ``RotationSettings()`` (``organic``): the best triplet (the search of
+        :func:`nrsfm.stages.corrective.corrective_triplets`) plus K - 1 triplets refined
+        on temporal windows of 90% of the frames; register (flip-aware Eq. 3), filter at
+        delta = 0.05 rad from the L1 average of the samples, per-frame L1 average
+        (Alg. 1); then the K triplets of the family consistent with that average,
+        combined per frame by maximum-ratio weights; depth signs by smoothness.
+        ``RotationSettings.preset("bmm")``: the best triplet only (Dai et al.).
+    seed : int
+        Seed of the random refinement starts (deterministic per seed).
+    progress : callable(str) or None
+
+    Returns
+    -------
+    RotationResult
+
+    Raises
+    ------
+    ValueError
+        Research settings (run them with :func:`nrsfm.ablation.estimate_rotations_ablation`),
+        or M_hat not (2F, 3K).
+    """
+    settings = RotationSettings() if settings is None else settings
+    if isinstance(settings, RotationAblationSettings) or \
+            not isinstance(settings, RotationSettings):
+        raise ValueError("estimate_rotations runs RotationSettings (organic, bmm); research "
+                         "settings run through nrsfm.ablation.estimate_rotations_ablation")
+    M = check_motion(M_hat, K)
+    say, info, timings = _say(progress), {}, {}
+    t0 = time.perf_counter()
+    G = production_triplets(M, K, settings, seed, info, say)
+    timings["triplets"] = time.perf_counter() - t0
+    return rotations_from_triplet_set(M, K, G, settings, info=info, timings=timings,
+                                      say=say, seed=seed)
+
+
+def _fill_empty(R, empty):
+    """Give frames without any sample the rotation of the nearest frame that has one."""
+    R = R.copy()
+    good = np.flatnonzero(~empty)
+    if len(good) == 0:
+        return np.tile(np.eye(3), (len(R), 1, 1))
+    for f in np.flatnonzero(empty):
+        R[f] = R[good[np.argmin(np.abs(good - f))]]
+    return R

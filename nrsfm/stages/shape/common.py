@@ -1,0 +1,130 @@
+"""What every shape solver shares: the reshuffle Phi, the pseudo-inverse shape, the input
+check and the one result type, :class:`ShapeResult`.
+
+Notation: ``X`` is the per-frame shape, (F, 3, P); ``X#`` (``X_sharp``) its reshuffle
+Phi(X), (F, 3P), whose row f is ``[x-coords, y-coords, z-coords]`` of frame f's P points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ...validation import check_K, check_measurements, check_rotations
+
+__all__ = ["ShapeResult", "check_shape_inputs", "phi", "phi_inv", "pseudo_inverse_shapes",
+           "truncate_rank"]
+
+
+def phi(X):
+    """Phi: (F, 3, P) shapes -> (F, 3P) X#."""
+    X = np.asarray(X)
+    return X.reshape(X.shape[0], -1)
+
+
+def phi_inv(X_sharp, P):
+    """Inverse of :func:`phi`: (F, 3P) -> (F, 3, P)."""
+    X_sharp = np.asarray(X_sharp)
+    return X_sharp.reshape(X_sharp.shape[0], 3, P)
+
+
+def pseudo_inverse_shapes(W, R):
+    """Per-frame pseudo-inverse shape ``X_init = pinv(R) W`` (paper Sec. 3.2).
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+    R : (F, 2, 3) or (F, 3, 3) ndarray
+        Per-frame cameras; only the first two rows are used.
+
+    Returns
+    -------
+    X_init : (F, 3, P) ndarray
+        The minimum-norm solution of ``R_f X_f = W_f`` per frame (planar for every frame).
+    """
+    F = W.shape[0] // 2
+    Rf = np.asarray(R)[:, :2, :]
+    return np.linalg.pinv(Rf) @ W.reshape(F, 2, -1)
+
+
+def truncate_rank(X, K):
+    """Project X# = Phi(X) onto its top-K singular vectors; returns (F, 3, P)."""
+    U, s, Vt = np.linalg.svd(phi(X), full_matrices=False)
+    return phi_inv((U[:, :K] * s[:K]) @ Vt[:K], X.shape[2])
+
+
+def check_shape_inputs(W, R, K=None):
+    """W as (2F, P), the first two rows of R as (F, 2, 3), F, P (and K if given: the
+    package's K bound, :func:`nrsfm.validation.check_K`)."""
+    W = check_measurements(W)
+    F, P = W.shape[0] // 2, W.shape[1]
+    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
+    if K is None:
+        return W, Rf, F, P
+    return W, Rf, F, P, check_K(K, F, P)
+
+
+@dataclass
+class ShapeResult:
+    """The result of every shape solver (:func:`nrsfm.stages.shape.solve_shape`).
+
+    Attributes
+    ----------
+    shapes : (F, 3, P) ndarray
+        The final shape, in the units of the W given.
+    X_init : (F, 3, P) ndarray
+        Pseudo-inverse shape ``pinv(R_f) W_f`` (planar per frame), W's units.
+    X_init_singular_values : (min(F, 3P),) ndarray
+        Singular values of ``X_init# = Phi(X_init)``, W's units.
+    theta : ndarray or None
+        The weights of the singular values used by the prior (solver's units, see
+        ``params``); the first N are reported but not penalised.
+    N : int
+        Leading singular values left unpenalised.
+    prior : str
+        ``organic``, ``weighted``, ``nuclear`` or ``none``.
+    solver : str
+        The registered solver name.
+    history : dict of ndarrays
+        Per iteration (solver-specific keys, always ``cost``).
+    n_iter : int
+    converged : bool
+    objective : float
+        The solver's objective at the end.
+    optimality : float
+        The solver's measure of optimality at the end: the ADMM's residual
+        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm; 0 for the
+        closed-form solutions.
+    params : dict
+        Every constant used.
+    weights, mu, noise, B, C, wnn_objective : optional
+        The bilinear solver's dimensionless weights ``a``, balance ``mu`` and the noise
+        level it came from, its factors and its weighted-nuclear-norm objective.
+    """
+
+    shapes: np.ndarray
+    X_init: np.ndarray
+    X_init_singular_values: np.ndarray
+    theta: Optional[np.ndarray]
+    N: int
+    prior: str
+    solver: str = ""
+    history: dict = field(default_factory=dict)
+    n_iter: int = 0
+    converged: bool = False
+    objective: float = float("nan")
+    optimality: float = float("nan")
+    params: dict = field(default_factory=dict)
+    weights: Optional[np.ndarray] = None
+    mu: Optional[float] = None
+    noise: Optional[float] = None
+    B: Optional[np.ndarray] = None
+    C: Optional[np.ndarray] = None
+    wnn_objective: Optional[float] = None
+
+    @property
+    def grad_norm(self):
+        """The bilinear solver's name for :attr:`optimality` (relative gradient norm)."""
+        return self.optimality

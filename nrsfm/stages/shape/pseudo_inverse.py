@@ -1,0 +1,33 @@
+"""Rank-K truncation of the pseudo-inverse shape (the ``pseudo_inverse`` method, Table 1).
+
+``X = P_K[pinv(R) W]``: the shape of every frame that reproduces W exactly (minimum norm,
+planar per frame), projected onto the top-K singular vectors of ``X#``. No prior, no
+iterations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .common import ShapeResult, check_shape_inputs, phi, pseudo_inverse_shapes, truncate_rank
+
+__all__ = ["solve_pseudo_inverse"]
+
+
+def solve_pseudo_inverse(W, R, K, prior, settings, progress=None):
+    """The shape stage's rank-K pseudo-inverse (``prior`` and ``settings`` have no options).
+
+    Returns
+    -------
+    ShapeResult
+        ``objective`` is the data term ``1/2 ||W - R X||_F^2``.
+    """
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    X_init = pseudo_inverse_shapes(W, R)
+    shapes = truncate_rank(X_init, K)
+    data = 0.5 * float(np.sum((W.reshape(F, 2, P) - Rf @ shapes) ** 2))
+    return ShapeResult(shapes=shapes, X_init=X_init,
+                       X_init_singular_values=np.linalg.svd(phi(X_init), compute_uv=False),
+                       theta=None, N=K, prior="none", solver="pseudo_inverse",
+                       history={"cost": np.array([data])}, converged=True, objective=data,
+                       optimality=0.0, params=dict(K=K))
