@@ -5,7 +5,8 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import data_tools
-from nrsfm import corrective as C
+from nrsfm import ablation as AB
+from nrsfm.stages import corrective as C
 from nrsfm.stages.measurement import factorize
 
 
@@ -40,7 +41,7 @@ def test_constraint_matrix_matches_definition():
 def test_solution_space_dimension_noise_free(K):
     M, _ = _M(K)
     A = C.constraint_matrix(M)
-    basis, sv = C.solution_space(A, K)
+    basis, sv = AB.solution_space(A, K)
     d = 2 * K * K - K
     assert basis.shape == (3 * K * (3 * K + 1) // 2, d)
     np.testing.assert_allclose(basis.T @ basis, np.eye(d), atol=1e-10)
@@ -51,9 +52,9 @@ def test_solution_space_dimension_noise_free(K):
 
 def test_relaxed_gram_admm_matches_cvxpy():
     M, _ = _M(2, noise=0.01)
-    basis, _ = C.solution_space(C.constraint_matrix(M), 2)
-    Qa = C.relaxed_gram(basis, 2, solver="admm", tol=1e-8)
-    Qc = C.relaxed_gram(basis, 2, solver="cvxpy")
+    basis, _ = AB.solution_space(C.constraint_matrix(M), 2)
+    Qa = AB.relaxed_gram(basis, 2, solver="admm", tol=1e-8)
+    Qc = AB.relaxed_gram(basis, 2, solver="cvxpy")
     nuc = lambda Q: np.abs(np.linalg.eigvalsh(Q)).sum()
     assert abs(nuc(Qa) - nuc(Qc)) < 1e-4 * nuc(Qc)
 
@@ -113,7 +114,7 @@ def test_penalized_gram_admm_matches_cvxpy_and_is_psd():
 @pytest.mark.parametrize("starts", ["relaxed", "multistart", "columns"])
 def test_all_starts_reach_an_exact_triplet_noise_free(starts):
     M, _ = _M(2, F=40, P=21, seed=6)
-    res = C.corrective_triplets(M, 2, starts=starts, seed=1)
+    res = AB.corrective_triplets_from(M, 2, starts=starts, seed=1)
     assert res.costs[0] < 1e-16
 
 

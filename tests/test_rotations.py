@@ -8,7 +8,10 @@ from threadpoolctl import threadpool_limits
 import data_tools
 from nrsfm import rotation_error
 from nrsfm.stages.measurement import factorize
-from nrsfm import rotations as RT
+from nrsfm import ablation as AB
+from nrsfm import geometry as GEO
+from nrsfm.settings import RotationSettings, rotation_settings
+from nrsfm.stages import rotations as RT
 
 FLIP = np.diag([-1.0, -1.0, 1.0])
 MIRROR = np.diag([1.0, 1.0, -1.0])
@@ -31,7 +34,7 @@ def _seq(K, motion, noise=0.0, seed=0, F=40):
 def test_noise_free_rotations_exact(K, motion):
     seq, M = _seq(K, motion, seed=K)
     for strategy in ("organic", "bmm"):
-        res = RT.estimate_rotations(M, K, strategy=strategy, seed=0)
+        res = RT.estimate_rotations(M, K, RotationSettings.preset(strategy), seed=0)
         assert res.rotations.shape == (40, 3, 3)
         assert np.allclose(np.linalg.det(res.rotations), 1.0)
         assert rotation_error(res.rotations, seq.rotations) < 1e-6, strategy
@@ -39,7 +42,7 @@ def test_noise_free_rotations_exact(K, motion):
 
 def test_random_motion_exact_up_to_depth_reversal():
     seq, M = _seq(2, "random", seed=11)
-    res = RT.estimate_rotations(M, 2, strategy="organic", seed=0)
+    res = RT.estimate_rotations(M, 2, RotationSettings.preset("organic"), seed=0)
     R, Rgt = res.rotations, seq.rotations
     # one global orthogonal alignment from the third rows (unchanged by a depth reversal)
     U, _, Vt = np.linalg.svd(np.einsum("fi,fj->ij", R[:, 2], Rgt[:, 2]))
@@ -64,10 +67,10 @@ def test_l1_average_robust_to_outliers():
     noise = Rotation.from_rotvec(0.01 * rng.standard_normal((m, F, 3)).reshape(-1, 3))
     samples = (noise * Rotation.concatenate([truth] * m)).as_matrix().reshape(m, F, 3, 3)
     samples[:3] = Rotation.random(3 * F, random_state=2).as_matrix().reshape(3, F, 3, 3)
-    l1 = RT.average_rotations(samples)
-    l2 = RT.chordal_mean(samples)
-    e1 = RT.rotation_angle(l1, truth.as_matrix())
-    e2 = RT.rotation_angle(l2, truth.as_matrix())
+    l1 = GEO.average_rotations(samples)
+    l2 = AB.chordal_mean(samples)
+    e1 = GEO.rotation_angle(l1, truth.as_matrix())
+    e2 = GEO.rotation_angle(l2, truth.as_matrix())
     assert e1.mean() < 0.02
     assert e1.mean() < 0.2 * e2.mean()
 
@@ -77,7 +80,7 @@ def test_average_weighted_mask_and_empty_frames():
     samples = np.stack([R, R])
     mask = np.ones((2, 4), bool)
     mask[:, 2] = False
-    out, info = RT.average_rotations(samples, mask, return_info=True)
+    out, info = GEO.average_rotations(samples, mask, return_info=True)
     assert np.all(np.isfinite(out))
     assert info["empty"].tolist() == [False, False, True, False]
     np.testing.assert_allclose(out[[0, 1, 3]], R[[0, 1, 3]], atol=1e-12)
@@ -100,7 +103,7 @@ def test_registration_recovers_global_rotation(mirrored):
     # R_reg (diag(-1,-1,1) diag(1,1,-1) = -I), so the flips come out complemented.
     np.testing.assert_array_equal(got_flips, flips ^ (mirrored and not got_mirror))
     # plain SO(3) registration (Eq. 4 without flips) cannot do this
-    plain = RT._procrustes_so3(np.einsum("fki,fkj->ij", R_k, R_ref).T)
+    plain = GEO.procrustes_so3(np.einsum("fki,fkj->ij", R_k, R_ref).T)
     assert np.linalg.norm(R_k @ plain.T - R_ref, axis=(1, 2)).mean() > 0.1
     assert cost < 1e-18
     assert np.isclose(np.linalg.det(R_reg), 1.0)
@@ -129,7 +132,7 @@ def test_no_nan_when_a_coefficient_is_zero():
     assert not valid[:, 5].any() and not valid[1].any()
     assert np.all(coef[:, 5] == 0)
     for strategy in ("organic", "bmm", "literal"):
-        res = RT.estimate_rotations(M, 2, strategy=strategy, seed=0)
+        res = AB.estimate_rotations_ablation(M, 2, rotation_settings(strategy), seed=0)
         assert np.all(np.isfinite(res.rotations))
         assert np.allclose(np.linalg.det(res.rotations), 1.0)
 
@@ -154,9 +157,9 @@ def test_deterministic_under_seed_and_result_fields():
 def test_unknown_strategy_and_option():
     _, M = _seq(1, "smooth")
     with pytest.raises(ValueError, match="strategy"):
-        RT.estimate_rotations(M, 1, strategy="nope")
+        rotation_settings("nope")
     with pytest.raises(ValueError, match="option"):
-        RT.estimate_rotations(M, 1, bogus=1)
+        rotation_settings(bogus=1)
 
 
 @pytest.mark.parametrize("strategy,options", [
@@ -167,7 +170,7 @@ def test_unknown_strategy_and_option():
 ])
 def test_every_strategy_exact_noise_free(strategy, options):
     seq, M = _seq(2, "smooth", seed=3)
-    res = RT.estimate_rotations(M, 2, strategy=strategy, seed=1, **options)
+    res = AB.estimate_rotations_ablation(M, 2, rotation_settings(strategy, **options), seed=1)
     assert rotation_error(res.rotations, seq.rotations) < 1e-6
     assert res.params["strategy"] == strategy
 
@@ -189,7 +192,7 @@ def test_combine_family_beats_single_triplet_under_noise():
     errs = []
     for seed in range(3):
         seq, M = _seq(3, "smooth", noise=0.08, seed=20 + seed, F=80)
-        single = RT.estimate_rotations(M, 3, strategy="bmm", seed=0)
+        single = RT.estimate_rotations(M, 3, RotationSettings.preset("bmm"), seed=0)
         G, _ = RT.triplet_family(M, single.rotations, 3)
         R, w = RT.combine_family(M, G, single.rotations)
         assert w.shape == (3, 80) and np.all(w >= 0)

@@ -1,11 +1,11 @@
-"""Tests of the scale rule (nrsfm.scale)."""
+"""Tests of the ADMM's scale rule (nrsfm.stages.shape.admm) and the scale invariance."""
 
 import numpy as np
 import pytest
 
 import data_tools
 import nrsfm
-from nrsfm.scale import TARGET_FROBENIUS, normalization_scale
+from nrsfm.stages.shape.admm import TARGET_FROBENIUS, normalization_scale
 
 
 def test_normalised_frobenius_norm():
@@ -30,9 +30,10 @@ def test_uses_W_alone_and_is_independent_of_layout():
     assert normalization_scale(W[:, perm_pts]) == pytest.approx(normalization_scale(W))
 
 
-def test_reconstruct_is_scale_invariant():
+@pytest.mark.parametrize("solver", ["bilinear", "admm"])
+def test_reconstruct_is_scale_invariant(solver):
     seq = data_tools.make_synthetic(F=40, P=16, K=2, motion="random", seed=6)
-    recs = [nrsfm.reconstruct(seq.W * c, seq.K, rotations=seq.rotations)
+    recs = [nrsfm.reconstruct(seq.W * c, seq.K, rotations=seq.rotations, shape_solver=solver)
             for c in (1e-3, 1.0, 1e3)]
     e = [nrsfm.e3d(r.shapes, seq.shapes) for r in recs]
     assert max(e) - min(e) < 1e-6

@@ -6,9 +6,12 @@ import pytest
 import data_tools
 import nrsfm
 from nrsfm.metrics import e3d
-from nrsfm.scale import normalization_scale
-from nrsfm.stages.shape import (PRIORS, ShapeResult, optimize_shapes, phi, phi_inv, psvt,
-                         pseudo_inverse_shapes, shape_weights, truncate_rank)
+from nrsfm.settings import (PRIORS, ClosedFormSettings, ShapeSettings,
+                            solver_settings)
+from nrsfm.stages.shape.admm import normalization_scale
+from nrsfm.stages.shape import (ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
+                                solve_shape, truncate_rank)
+from nrsfm.stages.shape.admm import optimize_shapes, psvt, shape_weights
 
 
 @pytest.fixture(scope="module")
@@ -196,9 +199,10 @@ def test_optimize_shapes_bad_input(change):
 
 
 # ------------------------------------------------------------------ bilinear solver, closed form
-from nrsfm.stages.shape import SHAPE_SOLVERS, solve_shapes  # noqa: E402
+from nrsfm.noise import noise_level  # noqa: E402
+from nrsfm.stages.shape import SHAPE_SOLVERS  # noqa: E402
 from nrsfm.stages.shape.bilinear import (_objective, bilinear_weights,  # noqa: E402
-                                  closed_form_coefficients, closed_form_shapes, noise_level,
+                                  closed_form_coefficients, closed_form_shapes,
                                   optimize_shapes_bilinear)
 
 
@@ -305,14 +309,17 @@ def test_every_prior_with_every_solver(seq, method, solver):
 
 
 def test_solver_dispatch_and_bad_input(seq):
-    st = solve_shapes(seq.W, seq.rotations, seq.K, solver="closed_form")
-    assert st.prior == "none" and st.mu == 0
+    st = solve_shape(seq.W, seq.rotations, seq.K,
+                     ShapeSettings(prior=None, solver=ClosedFormSettings()))
+    assert st.prior == "none" and st.mu == 0 and st.solver == "closed_form"
     with pytest.raises(ValueError):
-        solve_shapes(seq.W, seq.rotations, seq.K, solver="bogus")
+        solver_settings("bogus")
     with pytest.raises(ValueError):
         nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations, shape_solver="bogus")
-    with pytest.raises(ValueError):
-        solve_shapes(seq.W, seq.rotations, seq.K, solver="closed_form", mu=1.0)
+    with pytest.raises(ValueError, match="unknown options"):
+        solver_settings("closed_form", dict(mu=1.0))
+    with pytest.raises(ValueError, match="unknown options"):
+        nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations, shape_options=dict(N=1))
     for bad in (dict(prior="bogus"), dict(rank=0), dict(init="bogus"), dict(mu_factor=-1.0),
                 dict(gtol=-1.0), dict(max_iter=-1), dict(mu=-1.0)):
         with pytest.raises(ValueError):
