@@ -446,7 +446,8 @@ def method_settings(method="organic", shape_solver="bilinear", rotation_options=
     -------
     Settings
     """
-    _one_of("method", method, tuple(METHODS))
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {sorted(METHODS)}")
     strategy, prior = METHODS[method]
     options = dict(rotation_options or {})
     rotation = rotation_settings(options.pop("strategy", strategy), **options)

@@ -9,7 +9,9 @@ from threadpoolctl import threadpool_limits
 import data_tools
 import nrsfm
 from nrsfm import diagnostics as D
+from nrsfm.settings import RotationSettings
 from nrsfm.stages.measurement import factorize
+from nrsfm.stages.rotations import estimate_rotations
 
 
 @pytest.fixture(autouse=True)
@@ -100,8 +102,8 @@ def test_bad_triplet_is_flagged():
     """A triplet far from the best minimum: the cost ratio flags it."""
     seq = data_tools.make_synthetic(F=80, P=30, K=2, noise=0.02, seed=5)
     f = factorize(seq.W, 2)
-    good = nrsfm.stages.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
-    bad = nrsfm.stages.rotations.estimate_rotations(f.M_hat, 2, strategy="bmm")
+    good = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm"))
+    bad = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm"))
     G = np.random.default_rng(0).standard_normal((6, 3))
     bad.info["corrective_costs"] = np.array([nrsfm.stages.corrective.triplet_cost(G, f.M_hat)])
     bad.G = G[None]

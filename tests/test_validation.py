@@ -53,9 +53,12 @@ def test_bad_K(seq, K, message):
         nrsfm.reconstruct(seq.W, K)
 
 
-def test_K_limit_is_min_of_2F_and_P():
+def test_K_limit_is_min_of_2F_and_P_minus_1():
     W = dt.make_synthetic(F=4, P=30, K=2, seed=0).W       # 2F = 8 rows
-    with pytest.raises(ValueError, match=r"min\(8, 30\) = 8"):
+    with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 8"):
+        nrsfm.reconstruct(W, 3)
+    W = dt.make_synthetic(F=30, P=9, K=2, seed=0).W       # P - 1 = 8 < 3K = 9 = P
+    with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 8"):
         nrsfm.reconstruct(W, 3)
 
 

@@ -48,8 +48,8 @@ import rerun as rr
 
 import data_tools
 import nrsfm
-from nrsfm.stages.corrective import (constraint_matrix, corrective_triplets, solution_space,
-                              triplet_cost)
+from nrsfm.ablation import corrective_triplets_from, solution_space
+from nrsfm.stages.corrective import constraint_matrix, corrective_triplets, triplet_cost
 from nrsfm.stages.measurement import factorize
 from nrsfm.recording import camera_alignment, output_path, show_recording, shown_path
 
@@ -119,7 +119,7 @@ assert sv_A[-d] / sv_A[0] < 1e-6 and sv_A[-d - 1] / sv_A[0] > 1e-3   # a clean g
 res = {}
 for mode in ("dai", "relaxed", "columns"):
     t0 = time.perf_counter()
-    res[mode] = corrective_triplets(M_hat, K, starts=mode)
+    res[mode] = corrective_triplets_from(M_hat, K, starts=mode)
     e = [sign_free_rotation_error(triplet_cameras(G, M_hat)[0], R) for G in res[mode].G]
     print(f"{mode:8s} {len(res[mode].G)} triplet(s) in {time.perf_counter() - t0:.2f} s: "
           f"cost {np.array2string(res[mode].costs, precision=1)}, "
@@ -183,7 +183,7 @@ if os.environ.get("NRSFM_DATA"):
                       ("multistart", dict(starts="multistart"))):
         t0 = time.perf_counter()
         with np.errstate(all="ignore"):
-            r_p = corrective_triplets(f_p.M_hat, pickup.K, **kw)
+            r_p = corrective_triplets_from(f_p.M_hat, pickup.K, **kw)
         e_p = np.array([sign_free_rotation_error(triplet_cameras(G, f_p.M_hat)[0],
                                                  pickup.rotations) for G in r_p.G])
         out[label] = (r_p.costs, e_p)
@@ -221,12 +221,11 @@ else:
 # %%
 if os.environ.get("NRSFM_DATA"):
     from nrsfm.stages.measurement import centre_rows
-    from nrsfm.scale import normalization_scale
 
     Wn, _ = centre_rows(data_tools.add_noise(pickup.W, 0.25, seed=0))
-    f_n = factorize(Wn / normalization_scale(Wn), pickup.K)
-    one = corrective_triplets(f_n.M_hat, pickup.K, starts="relaxed")
-    srch = corrective_triplets(f_n.M_hat, pickup.K, starts="search", seed=0)
+    f_n = factorize(Wn / np.linalg.norm(Wn), pickup.K)
+    one = corrective_triplets_from(f_n.M_hat, pickup.K, starts="relaxed")
+    srch = corrective_triplets(f_n.M_hat, pickup.K, seed=0)
     e_one = sign_free_rotation_error(triplet_cameras(one.G[0], f_n.M_hat)[0], pickup.rotations)
     e_srch = sign_free_rotation_error(triplet_cameras(srch.G[0], f_n.M_hat)[0],
                                       pickup.rotations)

@@ -39,10 +39,12 @@ import data_tools
 import nrsfm
 from nrsfm.stages.measurement import factorize
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
-from nrsfm.stages.rotations import (FLIP, MIRROR, STRATEGIES, estimate_rotations, filter_rotations,
-                             register_rotations, resolve_depth_signs, rotation_angle,
-                             rotations_from_triplets)
-from nrsfm.scale import normalization_scale
+from nrsfm.ablation import STRATEGIES, estimate_rotations_ablation
+from nrsfm.geometry import rotation_angle
+from nrsfm.settings import rotation_settings
+from nrsfm.stages.rotations import (FLIP, MIRROR, estimate_rotations, filter_rotations,
+                                    register_rotations, resolve_depth_signs,
+                                    rotations_from_triplets)
 
 # %% [markdown]
 # ## Lifting the true triplets of a noise-free sequence
@@ -55,7 +57,7 @@ from nrsfm.scale import normalization_scale
 # %%
 seq = data_tools.default_sequence()
 F, P, K = seq.n_frames, seq.n_points, seq.K
-Wn = seq.W / normalization_scale(seq.W)
+Wn = seq.W / np.linalg.norm(seq.W)
 M_hat = factorize(Wn, K).M_hat
 C, R_gt = seq.extra["coefficients"], seq.rotations
 M_true = np.concatenate([C[:, k, None, None] * R_gt[:, :2] for k in range(K)], axis=2).reshape(
@@ -152,8 +154,8 @@ assert consistent
 
 # %%
 noisy = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.03, seed=7)
-f_noisy = factorize(noisy.W / normalization_scale(noisy.W), 3)
-rn = estimate_rotations(f_noisy.M_hat, 3, strategy="windows")   # registered, not filtered
+f_noisy = factorize(noisy.W / np.linalg.norm(noisy.W), 3)
+rn = estimate_rotations_ablation(f_noisy.M_hat, 3, rotation_settings("windows"))   # registered, not filtered
 for metric in ("angle", "chordal"):
     for delta in (0.02, 0.05, 0.1):
         kept, dist = filter_rotations(rn.registered, rn.registered[0], delta=delta, metric=metric)
@@ -173,7 +175,8 @@ plt.show()
 # %% [markdown]
 # ## The whole rotation stage, strategy by strategy
 #
-# `estimate_rotations(M_hat, K, strategy=...)`; the strategies (`STRATEGIES`):
+# `estimate_rotations_ablation(M_hat, K, rotation_settings(strategy))` (`nrsfm.ablation`;
+# the methods use `organic` and `bmm` through `estimate_rotations`); the strategies:
 
 # %%
 for name, what in STRATEGIES.items():
@@ -191,11 +194,11 @@ if os.environ.get("NRSFM_DATA"):
     cases += [(n, data_tools.load_mocap(n)) for n in ("pickup", "yoga")]
 results = {}
 for label, s in cases:
-    fm = factorize(s.W / normalization_scale(s.W), s.K)
+    fm = factorize(s.W / np.linalg.norm(s.W), s.K)
     for strategy in ("bmm", "literal", "organic"):
         t0 = time.perf_counter()
         with np.errstate(all="ignore"):
-            rr_ = estimate_rotations(fm.M_hat, s.K, strategy=strategy)
+            rr_ = estimate_rotations_ablation(fm.M_hat, s.K, rotation_settings(strategy))
         secs = time.perf_counter() - t0
         e = nrsfm.rotation_error(rr_.rotations, s.rotations)
         results[label, strategy] = e

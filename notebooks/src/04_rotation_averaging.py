@@ -18,7 +18,7 @@
 #   (Lee & Civera), rather than the chordal L2 mean.
 #
 # `nrsfm.stages.rotations.average_rotations` is Algorithm 1 vectorised over frames;
-# `nrsfm.stages.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
+# `nrsfm.ablation.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
 
 # %%
 import os
@@ -36,8 +36,9 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.recording import build_recording, output_path, show_recording, shown_path
-from nrsfm.stages.rotations import (average_rotations, chordal_mean, project_to_so3,
-                             resolve_depth_signs, rotation_angle)
+from nrsfm.ablation import chordal_mean
+from nrsfm.geometry import average_rotations, project_to_so3, rotation_angle
+from nrsfm.stages.rotations import resolve_depth_signs
 
 # %% [markdown]
 # ## Projection onto SO(3)

@@ -53,7 +53,8 @@ import data_tools
 import nrsfm
 from nrsfm import figures
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
-from nrsfm.stages.shape import (optimize_shapes, phi, pseudo_inverse_shapes, psvt, shape_weights)
+from nrsfm.stages.shape import phi, pseudo_inverse_shapes
+from nrsfm.stages.shape.admm import optimize_shapes, psvt, shape_weights
 
 # %% [markdown]
 # ## The pseudo-inverse shape is planar
@@ -147,15 +148,15 @@ plt.show()
 # $\xi\propto\sqrt{\sigma_1}$ while the data term scales with $\sigma_1^2$: multiplying
 # $\mathbf W$ by 10 makes the prior ten times weaker relative to the data, and the result
 # falls back towards the pseudo-inverse shape. `optimize_shapes` works
-# in whatever units it is given; `nrsfm.reconstruct` therefore divides $\mathbf W$ by a scale
-# computed from $\mathbf W$ alone (`nrsfm.scale`, recorded as `result.scale`) and returns
-# shapes in the input's units.
+# in whatever units it is given; the shape stage's ADMM (`solve_admm`) therefore divides
+# $\mathbf W$ by a scale computed from $\mathbf W$ alone (`normalization_scale` of
+# `nrsfm.stages.shape.admm`) and returns shapes in the units it was given.
 
 # %%
 by_scale = {c: nrsfm.e3d(optimize_shapes(c * seq.W, seq.rotations, K).shapes, seq.shapes)
             for c in (0.1, 1.0, 10.0)}
 print("e3d of optimize_shapes(c * W):", {c: round(e, 4) for c, e in by_scale.items()})
-print(f"reconstruct normalises by scale = {organic.scale:.3g}: e3d {e3d['organic']:.4f}")
+print(f"reconstruct normalises W (||W||_F = {organic.scale:.3g}): e3d {e3d['organic']:.4f}")
 # measured: 0.0073, 0.0138, 0.30
 assert by_scale[10.0] > 10 * by_scale[1.0]
 scaled_run = nrsfm.reconstruct(10 * seq.W, K, method="organic", rotations=seq.rotations,
@@ -262,7 +263,7 @@ plt.show()
 # %% [markdown]
 # ## Scale and path noise
 #
-# The ADMM's answer depends on the units of $\mathbf W$ (hence `nrsfm.scale`'s target
+# The ADMM's answer depends on the units of $\mathbf W$ (hence the target
 # Frobenius norm 170, a setting of that solver chosen on the MoCap sequences), and, being the
 # end of a path, it moves when $\mathbf W$ changes by rounding-level amounts. Below: a
 # noise-free exactly rank-2 sequence scaled to Frobenius norm 10 ... 2000 (the ADMM run

@@ -126,5 +126,6 @@ class ShapeResult:
 
     @property
     def grad_norm(self):
-        """The bilinear solver's name for :attr:`optimality` (relative gradient norm)."""
-        return self.optimality
+        """Relative gradient norm (:attr:`optimality` of the bilinear and closed-form
+        solvers); None for the others, whose optimality is measured otherwise."""
+        return self.optimality if self.solver in ("bilinear", "closed_form") else None

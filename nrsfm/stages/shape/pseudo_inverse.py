@@ -20,7 +20,8 @@ def solve_pseudo_inverse(W, R, K, prior, settings, progress=None):
     Returns
     -------
     ShapeResult
-        ``objective`` is the data term ``1/2 ||W - R X||_F^2``.
+        ``objective`` is the data term ``1/2 ||W - R X||_F^2``; no iterations, so an
+        empty ``history``.
     """
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     X_init = pseudo_inverse_shapes(W, R)
@@ -29,5 +30,5 @@ def solve_pseudo_inverse(W, R, K, prior, settings, progress=None):
     return ShapeResult(shapes=shapes, X_init=X_init,
                        X_init_singular_values=np.linalg.svd(phi(X_init), compute_uv=False),
                        theta=None, N=K, prior="none", solver="pseudo_inverse",
-                       history={"cost": np.array([data])}, converged=True, objective=data,
+                       converged=True, objective=data,
                        optimality=0.0, params=dict(K=K))
