@@ -393,8 +393,7 @@ def corrective_triplets_from(M_hat, K, starts="search", seed=0, n_random=32, n_f
     Returns
     -------
     CorrectiveResult
-        ``G`` sorted by cost (``G[0]`` is the best triplet); ``info["starts"]`` names each
-        row's start.
+        As :func:`nrsfm.stages.corrective.corrective_triplets`, ``G`` sorted by cost.
     """
     M = np.asarray(M_hat, float)
     if starts not in ("search", "relaxed", "dai", "columns", "multistart"):

@@ -65,6 +65,12 @@ SIGN_FRACTION_MAX = 0.10
 
 #: smallest acceptable largest angle between a viewing direction and their mean (degrees)
 CAMERA_SPREAD_MIN_DEG = 10.0
+#: absolute floor (per frame) of the predicted triplet cost: keeps the ratio finite on
+#: noise-free data
+COST_FLOOR_PER_FRAME = 1e-6
+#: W "looks transposed" when read as (P, 2F) its best Dai cost per frame is below this
+#: fraction of the cost per frame as given
+TRANSPOSE_RATIO = 0.25
 
 THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank="< 3K (note unless another flag)",
                   rank_gap=f"< {RANK_GAP_MIN} (note)",
@@ -214,62 +220,7 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
 
     if rotation_stage is not None and M_hat is not None:
-        info = rotation_stage.info
-        G0 = rotation_stage.G[0]
-        cost = float(info["corrective_costs"][0])
-        pred = predicted_triplet_cost(M_hat, G0, s, sigma)
-        # noise-free data: a small absolute floor keeps the ratio finite and meaningful
-        floor = 1e-6 * F
-        ratio = cost / max(pred, floor)
-        sig["triplet_cost"] = cost
-        sig["triplet_cost_predicted"] = pred
-        sig["triplet_cost_ratio"] = ratio
-        if ratio > COST_RATIO_MAX:
-            flags.append(f"Dai's cost of the best corrective triplet {cost:.3g} is "
-                         f"{ratio:.3g} x what the noise level of W predicts ({pred:.3g}; "
-                         f"flagged above {COST_RATIO_MAX}): a bad minimum or W not an "
-                         f"orthographic measurement matrix")
-        search = info.get("corrective_search")
-        if search:
-            sig["triplet_hits"] = int(search["hits"])
-            sig["triplet_starts"] = int(search["n_starts"])
-            if search["hits"] < 2:
-                flags.append(f"the best corrective triplet was reached by only "
-                             f"{search['hits']} of {search['n_starts']} starts")
-        kept = float(np.mean(rotation_stage.kept))
-        sig["kept_fraction"] = kept
-        if rotation_stage.kept.shape[0] > 1 and kept < KEPT_MIN:
-            flags.append(f"only {kept:.0%} of the rotation samples passed the filter "
-                         f"(flagged below {KEPT_MIN:.0%}): the K triplets disagree")
-        sfrac = float(np.mean(rotation_stage.sign_from_smoothness))
-        sig["smoothness_sign_fraction"] = sfrac
-        if sfrac > SIGN_FRACTION_MAX:
-            flags.append(f"{int(rotation_stage.sign_from_smoothness.sum())} of {F} frames "
-                         f"had their depth sign set by motion smoothness (flagged above "
-                         f"{SIGN_FRACTION_MAX:.0%}): the cameras jump between frames")
-        R = rotation_stage.rotations
-        d = R[:, 2] * np.where(np.einsum("fi,i->f", R[:, 2], R[0, 2]) < 0, -1.0, 1.0)[:, None]
-        mean_d = d.mean(axis=0)
-        mean_d /= max(np.linalg.norm(mean_d), 1e-300)
-        ang = np.degrees(np.arccos(np.clip(d @ mean_d, -1.0, 1.0)))
-        spread = float(np.max(ang))
-        sig["camera_spread_deg"] = spread
-        if spread < CAMERA_SPREAD_MIN_DEG:
-            flags.append(f"the estimated viewing directions stay within {spread:.2g} degrees "
-                         f"of their mean (flagged below {CAMERA_SPREAD_MIN_DEG} degrees): a "
-                         f"(nearly) static camera leaves depth unobserved")
-        sig["looks_transposed"] = False
-        if ratio > COST_RATIO_MAX and rank >= r and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
-            Wt = W.T - W.T.mean(axis=1, keepdims=True)
-            here = cost / F
-            there = _dai_cost_per_frame(Wt, K, seed)
-            sig["transposed_cost_per_frame"] = there
-            if there < 0.25 * here:
-                sig["looks_transposed"] = True
-                flags.append(f"W looks transposed: read as ({P}, {twoF}) = "
-                             f"({P // 2} frames, {twoF} points) it fits orthographic "
-                             f"cameras far better (Dai's cost per frame {there:.3g} against "
-                             f"{here:.3g}); pass W.T if W is (P, 2F)")
+        _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, rank >= r, sig, flags)
     if rank_msg is not None:
         # A rank-deficient W with a confirmed, noise-level triplet is not by itself a failure
         # (shark: rank 5 < 3K = 9, e3d at the paper's level): a note then, a flag (and the
@@ -279,3 +230,67 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
         else:
             notes.append(rank_msg)
     return Diagnostics(signals=sig, flags=flags, notes=notes)
+
+
+def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, sig, flags):
+    """The rotation stage's signals and flags (into ``sig`` and ``flags``): the triplet's
+    cost against the noise prediction, the search's hits, the filter, the depth signs, the
+    cameras' spread and the transpose test."""
+    twoF, P = W.shape
+    F = twoF // 2
+    info = rotation_stage.info
+    G0 = rotation_stage.G[0]
+    cost = float(info["corrective_costs"][0])
+    pred = predicted_triplet_cost(M_hat, G0, s, sigma)
+    # noise-free data: a small absolute floor keeps the ratio finite and meaningful
+    floor = COST_FLOOR_PER_FRAME * F
+    ratio = cost / max(pred, floor)
+    sig["triplet_cost"] = cost
+    sig["triplet_cost_predicted"] = pred
+    sig["triplet_cost_ratio"] = ratio
+    if ratio > COST_RATIO_MAX:
+        flags.append(f"Dai's cost of the best corrective triplet {cost:.3g} is "
+                     f"{ratio:.3g} x what the noise level of W predicts ({pred:.3g}; "
+                     f"flagged above {COST_RATIO_MAX}): a bad minimum or W not an "
+                     f"orthographic measurement matrix")
+    search = info.get("corrective_search")
+    if search:
+        sig["triplet_hits"] = int(search["hits"])
+        sig["triplet_starts"] = int(search["n_starts"])
+        if search["hits"] < 2:
+            flags.append(f"the best corrective triplet was reached by only "
+                         f"{search['hits']} of {search['n_starts']} starts")
+    kept = float(np.mean(rotation_stage.kept))
+    sig["kept_fraction"] = kept
+    if rotation_stage.kept.shape[0] > 1 and kept < KEPT_MIN:
+        flags.append(f"only {kept:.0%} of the rotation samples passed the filter "
+                     f"(flagged below {KEPT_MIN:.0%}): the K triplets disagree")
+    sfrac = float(np.mean(rotation_stage.sign_from_smoothness))
+    sig["smoothness_sign_fraction"] = sfrac
+    if sfrac > SIGN_FRACTION_MAX:
+        flags.append(f"{int(rotation_stage.sign_from_smoothness.sum())} of {F} frames "
+                     f"had their depth sign set by motion smoothness (flagged above "
+                     f"{SIGN_FRACTION_MAX:.0%}): the cameras jump between frames")
+    R = rotation_stage.rotations
+    d = R[:, 2] * np.where(np.einsum("fi,i->f", R[:, 2], R[0, 2]) < 0, -1.0, 1.0)[:, None]
+    mean_d = d.mean(axis=0)
+    mean_d /= max(np.linalg.norm(mean_d), 1e-300)
+    ang = np.degrees(np.arccos(np.clip(d @ mean_d, -1.0, 1.0)))
+    spread = float(np.max(ang))
+    sig["camera_spread_deg"] = spread
+    if spread < CAMERA_SPREAD_MIN_DEG:
+        flags.append(f"the estimated viewing directions stay within {spread:.2g} degrees "
+                     f"of their mean (flagged below {CAMERA_SPREAD_MIN_DEG} degrees): a "
+                     f"(nearly) static camera leaves depth unobserved")
+    sig["looks_transposed"] = False
+    if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
+        Wt = W.T - W.T.mean(axis=1, keepdims=True)
+        here = cost / F
+        there = _dai_cost_per_frame(Wt, K, seed)
+        sig["transposed_cost_per_frame"] = there
+        if there < TRANSPOSE_RATIO * here:
+            sig["looks_transposed"] = True
+            flags.append(f"W looks transposed: read as ({P}, {twoF}) = "
+                         f"({P // 2} frames, {twoF} points) it fits orthographic "
+                         f"cameras far better (Dai's cost per frame {there:.3g} against "
+                         f"{here:.3g}); pass W.T if W is (P, 2F)")

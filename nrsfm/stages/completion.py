@@ -111,21 +111,20 @@ def observed_mask(W, min_points=3, min_frames=2):
     F, P = W.shape[0] // 2, W.shape[1]
     finite = np.isfinite(W).reshape(F, 2, P)
     observed = finite.all(axis=1)
-    per_frame = observed.sum(axis=1)
-    bad = np.flatnonzero(per_frame < min_points)
-    if bad.size:
-        raise ValueError(
-            f"frame {int(bad[0])} observes {int(per_frame[bad[0]])} points (at least "
-            f"{min_points} are needed to determine it); {bad.size} frame(s) too sparse: "
-            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}")
-    per_point = observed.sum(axis=0)
-    bad = np.flatnonzero(per_point < min_frames)
-    if bad.size:
-        raise ValueError(
-            f"point {int(bad[0])} is observed in {int(per_point[bad[0]])} frames (at least "
-            f"{min_frames} are needed to determine it); {bad.size} point(s) too sparse: "
-            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}")
+    _refuse_sparse(observed.sum(axis=1), min_points, "frame", "observes {n} points")
+    _refuse_sparse(observed.sum(axis=0), min_frames, "point", "is observed in {n} frames")
     return observed
+
+
+def _refuse_sparse(counts, minimum, what, observes):
+    """ValueError naming the first of the frames (or points) with fewer than ``minimum``
+    observations, and how many there are."""
+    bad = np.flatnonzero(counts < minimum)
+    if bad.size:
+        raise ValueError(
+            f"{what} {int(bad[0])} {observes.format(n=int(counts[bad[0]]))} (at least "
+            f"{minimum} are needed to determine it); {bad.size} {what}(s) too sparse: "
+            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}")
 
 
 def _lag_index(F, lags):

@@ -14,14 +14,11 @@ Conventions
 * The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
   :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
 
-Where the K triplets come from (the paper says only "using Dai et al." for every k): the
-best triplet from :func:`nrsfm.stages.corrective.corrective_triplets`, K - 1 triplets
-refined on temporal windows, and (``organic``) the K-dimensional family of triplets
-consistent with their average, combined per frame by signal-to-noise weights
-(:func:`triplet_family`, :func:`combine_family`). :func:`estimate_rotations` runs the
-``organic`` and ``bmm`` strategies with a :class:`nrsfm.settings.RotationSettings`; the
-research strategies are in :mod:`nrsfm.ablation`. The measurements behind these choices
-are in ``docs/rotation_stage.md``.
+The K triplets (the paper says only "using Dai et al." for every k): the best one of the
+search, K - 1 refined on temporal windows and (``organic``) the family consistent with
+their average, combined per frame by signal-to-noise weights. :func:`estimate_rotations`
+runs ``organic`` and ``bmm`` (:class:`nrsfm.settings.RotationSettings`); research
+strategies: :mod:`nrsfm.ablation`. Measurements: ``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -358,15 +355,12 @@ class RotationResult:
         R_reg^k (identity for k = 0).
     registered : (m, F, 3, 3) ndarray
         After registration and flip handling.
-    kept : (m, F) bool
-        Samples that passed the filter.
+    kept : (m, F) bool, the samples that passed the filter
     averaged : (F, 3, 3) ndarray
         The L1 average (before the smoothness sign rule).
     sign_from_smoothness : (F,) bool
         Frames whose depth sign was changed by the motion-smoothness rule.
-    strategy : str
-    params : dict
-    timings : dict
+    strategy, params, timings : str, dict, dict
     info : dict
         Triplet costs, their starts, flips, handedness, filter distances, ...
     """
