@@ -115,7 +115,6 @@ def scale_table(args):
     from nrsfm.stages.measurement import centre_rows, factorize
     from nrsfm.recording_video import save_video_recording
     from nrsfm.stages.rotations import estimate_rotations
-    from nrsfm.scale import normalization_scale
     from nrsfm.stages.shape import pseudo_inverse_shapes, solve_shapes
 
     P, F = args.points, args.frames
@@ -124,7 +123,7 @@ def scale_table(args):
     rows = []
     (Wc, _), t, m = _measure(lambda: centre_rows(W))
     rows.append(("centre rows", t, m))
-    s = normalization_scale(Wc)
+    s = np.linalg.norm(Wc)                  # the measurement stage's normalisation
     Wn = Wc / s
     fact, t, m = _measure(lambda: factorize(Wn, 1))
     rows.append(("factorisation: nrsfm.stages.measurement.factorize (+ residual)", t, m))

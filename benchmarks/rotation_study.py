@@ -34,11 +34,9 @@ ROTATION_GT = ("pickup", "yoga", "stretch", "drink")
 
 def pipeline_M_hat(W, K):
     """``M_hat`` exactly as :func:`nrsfm.reconstruct` computes it."""
-    from nrsfm.stages.measurement import centre_rows, factorize
-    from nrsfm.scale import normalization_scale
+    from nrsfm.stages.measurement import measure
 
-    Wc, _ = centre_rows(W)
-    return factorize(Wc / normalization_scale(Wc), K).M_hat
+    return measure(W, K).factorization.M_hat
 
 
 def _perturbed(R, magnitude, seed):
@@ -54,7 +52,8 @@ def run(names, strategies, data=None, shape=True, seed=0, options=None, say=prin
         e3d_repeats=1, perturbation=1e-4):
     import data_tools
     import nrsfm
-    from nrsfm.stages.rotations import estimate_rotations
+    from nrsfm.ablation import estimate_rotations_ablation
+    from nrsfm.settings import rotation_settings
 
     rows = []
     for name in names:
@@ -69,7 +68,8 @@ def run(names, strategies, data=None, shape=True, seed=0, options=None, say=prin
             row = dict(sequence=name, K=K, strategy=strat)
             if R is None:
                 t0 = time.perf_counter()
-                res = estimate_rotations(M, K, strategy=strat, seed=seed, **(options or {}))
+                res = estimate_rotations_ablation(M, K, rotation_settings(strat, **(options or {})),
+                                                  seed=seed)
                 row["t_rot"] = time.perf_counter() - t0
                 row.update({f"t_{k}": v for k, v in res.timings.items()})
                 row["kept"] = float(res.kept.mean())

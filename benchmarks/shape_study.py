@@ -45,11 +45,11 @@ from threadpoolctl import threadpool_limits
 
 import data_tools as dt
 import nrsfm
-import nrsfm.scale
 from nrsfm.metrics import e3d, rotation_error
 from nrsfm.published import published_value
-from nrsfm.scale import normalization_scale
-from nrsfm.stages.shape import optimize_shapes, solve_shapes
+from nrsfm.stages.shape.admm import normalization_scale
+from nrsfm.stages.shape import solve_shapes
+from nrsfm.stages.shape.admm import optimize_shapes
 from nrsfm.stages.shape.bilinear import closed_form_shapes
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
@@ -126,7 +126,7 @@ def section_time(seqs, solvers, repeats=3):
           "machine shared with other jobs ==")
     for name in ("pickup", "drink"):
         seq = seqs[name]
-        Wn = seq.W / nrsfm.scale.normalization_scale(seq.W)
+        Wn = seq.W / normalization_scale(seq.W)
         line = f"{name:8s} F={seq.n_frames:5d} P={seq.n_points:3d} K={seq.K:2d}"
         for s in solvers:
             ts = []

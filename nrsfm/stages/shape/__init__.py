@@ -29,7 +29,7 @@ from .common import (ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
 from .pseudo_inverse import solve_pseudo_inverse
 
 __all__ = ["SHAPE_SOLVERS", "SOLVERS", "ShapeResult", "Solver", "phi", "phi_inv",
-           "pseudo_inverse_shapes", "solve_shape", "truncate_rank"]
+           "pseudo_inverse_shapes", "solve_shape", "solve_shapes", "truncate_rank"]
 
 
 class Solver(NamedTuple):
@@ -75,3 +75,15 @@ def solve_shape(W, R, K, settings=None, progress=None):
         raise ValueError(f"no solver registered for {settings.solver!r}; expected one of "
                          f"{list(SOLVERS)}")
     return solver.solve(W, R, K, settings.prior, settings.solver, progress)
+
+
+def solve_shapes(W, R, K, prior="organic", solver="bilinear", progress=None, **options):
+    """:func:`solve_shape` with the solver named and its options as keywords (converted
+    into the solver's settings type; an unknown option is a ValueError naming the known
+    ones). ``prior`` is ignored by ``closed_form`` and ``pseudo_inverse``."""
+    from ...settings import solver_settings
+
+    settings = solver_settings(solver, options)
+    no_prior = settings.name in ("closed_form", "pseudo_inverse")
+    return solve_shape(W, R, K, ShapeSettings(prior=None if no_prior else prior,
+                                              solver=settings), progress)
