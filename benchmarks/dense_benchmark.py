@@ -112,7 +112,7 @@ def dense_tracks(P, F, seed):
 def scale_table(args):
     import rerun  # noqa: F401  (imported here so that its ~3 s import is not timed below)
 
-    from nrsfm.stages.measurement import centre_rows, factorize
+    from nrsfm.stages.measurement import centre_rows, factorize, working_scale
     from nrsfm.recording_video import save_video_recording
     from nrsfm.stages.rotations import estimate_rotations
     from nrsfm.stages.shape import pseudo_inverse_shapes, solve_shapes
@@ -123,7 +123,7 @@ def scale_table(args):
     rows = []
     (Wc, _), t, m = _measure(lambda: centre_rows(W))
     rows.append(("centre rows", t, m))
-    s = np.linalg.norm(Wc)                  # the measurement stage's normalisation
+    s = working_scale(Wc)
     Wn = Wc / s
     fact, t, m = _measure(lambda: factorize(Wn, 1))
     rows.append(("factorisation: nrsfm.stages.measurement.factorize (+ residual)", t, m))

@@ -46,7 +46,7 @@ class Reconstruction:
     row_means : (2F,) ndarray
         What centring removed (per-frame translation).
     scale : float
-        ``||W||_F``: the stages ran on ``W / scale`` (:mod:`nrsfm.stages.measurement`).
+        ``||W||_F / 170``: the stages ran on ``W / scale`` (:mod:`nrsfm.stages.measurement`).
     factorization : Factorization
         Rank-3K SVD of ``W / scale`` (``M_hat``, ``B_hat``, singular values).
     rotation_stage : object or None

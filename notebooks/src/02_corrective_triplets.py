@@ -220,10 +220,10 @@ else:
 
 # %%
 if os.environ.get("NRSFM_DATA"):
-    from nrsfm.stages.measurement import centre_rows
+    from nrsfm.stages.measurement import centre_rows, working_scale
 
     Wn, _ = centre_rows(data_tools.add_noise(pickup.W, 0.25, seed=0))
-    f_n = factorize(Wn / np.linalg.norm(Wn), pickup.K)
+    f_n = factorize(Wn / working_scale(Wn), pickup.K)
     one = corrective_triplets_from(f_n.M_hat, pickup.K, starts="relaxed")
     srch = corrective_triplets(f_n.M_hat, pickup.K, seed=0)
     e_one = sign_free_rotation_error(triplet_cameras(one.G[0], f_n.M_hat)[0], pickup.rotations)

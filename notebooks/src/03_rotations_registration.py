@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 
 import data_tools
 import nrsfm
-from nrsfm.stages.measurement import factorize
+from nrsfm.stages.measurement import factorize, working_scale
 from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 from nrsfm.ablation import STRATEGIES, estimate_rotations_ablation
 from nrsfm.geometry import rotation_angle
@@ -57,7 +57,7 @@ from nrsfm.stages.rotations import (FLIP, MIRROR, estimate_rotations, filter_rot
 # %%
 seq = data_tools.default_sequence()
 F, P, K = seq.n_frames, seq.n_points, seq.K
-Wn = seq.W / np.linalg.norm(seq.W)
+Wn = seq.W / working_scale(seq.W)
 M_hat = factorize(Wn, K).M_hat
 C, R_gt = seq.extra["coefficients"], seq.rotations
 M_true = np.concatenate([C[:, k, None, None] * R_gt[:, :2] for k in range(K)], axis=2).reshape(
@@ -154,7 +154,7 @@ assert consistent
 
 # %%
 noisy = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.03, seed=7)
-f_noisy = factorize(noisy.W / np.linalg.norm(noisy.W), 3)
+f_noisy = factorize(noisy.W / working_scale(noisy.W), 3)
 rn = estimate_rotations_ablation(f_noisy.M_hat, 3, rotation_settings("windows"))   # registered, not filtered
 for metric in ("angle", "chordal"):
     for delta in (0.02, 0.05, 0.1):
@@ -194,7 +194,7 @@ if os.environ.get("NRSFM_DATA"):
     cases += [(n, data_tools.load_mocap(n)) for n in ("pickup", "yoga")]
 results = {}
 for label, s in cases:
-    fm = factorize(s.W / np.linalg.norm(s.W), s.K)
+    fm = factorize(s.W / working_scale(s.W), s.K)
     for strategy in ("bmm", "literal", "organic"):
         t0 = time.perf_counter()
         with np.errstate(all="ignore"):
