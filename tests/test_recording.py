@@ -11,9 +11,8 @@ from rerun.chunk import RrdReader  # noqa: E402
 
 import data_tools  # noqa: E402
 import nrsfm  # noqa: E402
-from nrsfm.metrics import similarity_align  # noqa: E402
-from nrsfm.recording import (build_recording, camera_alignment, recording_content,  # noqa: E402
-                             save_recording)
+from nrsfm.metrics import camera_alignment, similarity_align  # noqa: E402
+from nrsfm.views import build_recording, recording_content, save_recording  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -295,7 +294,7 @@ def _views(node):
 @pytest.mark.parametrize("stages", [True, False])
 def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result, stages):
     """Each view of the default blueprint shows entities logged static or on ``frame``."""
-    from nrsfm.recording import make_blueprint
+    from nrsfm.views import make_blueprint
 
     result = _stand_in_stages(pinv_result, seq) if stages else pinv_result
     data = read_rrd(save_recording(result, tmp_path / "bp.rrd", seq))

@@ -51,7 +51,8 @@ import nrsfm
 from nrsfm.corrective import (constraint_matrix, corrective_triplets, solution_space,
                               triplet_cost)
 from nrsfm.measurement import factorize
-from nrsfm.recording import camera_alignment, output_path, show_recording, shown_path
+from nrsfm.metrics import camera_alignment
+from nrsfm.views import output_path, show_recording, shown_path
 
 
 def triplet_cameras(G, M_hat):

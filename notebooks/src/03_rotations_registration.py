@@ -38,11 +38,11 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.measurement import factorize
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 from nrsfm.rotations import (FLIP, MIRROR, STRATEGIES, estimate_rotations, filter_rotations,
                              register_rotations, resolve_depth_signs, rotation_angle,
                              rotations_from_triplets)
 from nrsfm.scale import normalization_scale
+from nrsfm.views import output_path, save_recording, show_recording, shown_path
 
 # %% [markdown]
 # ## Lifting the true triplets of a noise-free sequence

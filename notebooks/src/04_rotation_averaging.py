@@ -35,9 +35,9 @@ from scipy.spatial.transform import Rotation
 
 import data_tools
 import nrsfm
-from nrsfm.recording import build_recording, output_path, show_recording, shown_path
 from nrsfm.rotations import (average_rotations, chordal_mean, project_to_so3,
                              resolve_depth_signs, rotation_angle)
+from nrsfm.views import build_recording, output_path, show_recording, shown_path
 
 # %% [markdown]
 # ## Projection onto SO(3)

@@ -51,9 +51,8 @@ import numpy as np
 
 import data_tools
 import nrsfm
-from nrsfm import figures
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
 from nrsfm.shape import (optimize_shapes, phi, pseudo_inverse_shapes, psvt, shape_weights)
+from nrsfm.views import figures, output_path, save_recording, show_recording, shown_path
 
 # %% [markdown]
 # ## The pseudo-inverse shape is planar

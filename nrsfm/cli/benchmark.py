@@ -1,16 +1,28 @@
-"""``nrsfm benchmark``: the paper's experiments in one command."""
+"""``nrsfm benchmark``: the paper's experiments in one command (:mod:`nrsfm.experiments`)."""
 
 from __future__ import annotations
 
-from .plan import EXPERIMENTS
+from pathlib import Path
+
+from .common import positive_int, seed
 
 __all__ = ["add_benchmark_command", "cmd_benchmark"]
 
 
-def cmd_benchmark(args):
-    from .runner import run_benchmark
+def _output_folder(path, what):
+    """A folder to write into (created when absent): ValueError if a file is in the way."""
+    path = Path(path).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {path} exists and is not a folder")
+    return path
 
-    res = run_benchmark(args.out, data=args.data, only=args.only, sequences=args.sequences,
+
+def cmd_benchmark(args):
+    """Run the plan, print where the tables went."""
+    from ..experiments.runner import run_benchmark
+
+    out = _output_folder(args.out, "--out")
+    res = run_benchmark(out, data=args.data, only=args.only, sequences=args.sequences,
                         quick=args.quick, workers=args.workers, scheduler=args.scheduler,
                         seed=args.seed, progress=not args.quiet)
     print(f"nrsfm benchmark: {res['n_tasks']} tasks ({res['n_cached']} cached) in "
@@ -21,6 +33,8 @@ def cmd_benchmark(args):
 
 def add_benchmark_command(subparsers):
     """Register ``benchmark`` on the ``nrsfm`` argument parser's subparsers."""
+    from ..experiments.plan import EXPERIMENTS
+
     p = subparsers.add_parser(
         "benchmark", help="regenerate the paper's experiments (tables, plots) into a folder",
         description="Run the paper's experiments (MoCap table, Table 1, Table 3, noise, "
@@ -40,12 +54,12 @@ def add_benchmark_command(subparsers):
     p.add_argument("--quick", action="store_true",
                    help="the quick set (fewer methods, noise levels, runs; ablations and "
                         "sweeps on pickup only): for CI")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=positive_int, default=1,
                    help="local worker processes (default 1)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the tasks on a Dask distributed scheduler, e.g. "
                         "tcp://host:8786 (needs the 'distributed' extra)")
-    p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="base seed (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_benchmark)
     return p
