@@ -150,6 +150,11 @@ def test_stage_recording(tmp_path, seq, pinv_result):
     assert sum(b.num_rows for b in data["/rotations/averaged"]["temporal"]) == F
     for name in ("W", "X_init", "theta"):
         assert data[f"/singular_values/{name}"]["static"]
+    # the documented top-level paths are exactly those written (all stages ran here)
+    from nrsfm.views import ENTITY_PATHS
+
+    tops = {"/" + p.strip("/").split("/")[0] for p in data if not p.startswith("/__")}
+    assert tops == set(ENTITY_PATHS)
 
 
 def test_content_values(seq, pinv_result):
