@@ -8,6 +8,11 @@ from .common import positive_int, seed
 
 __all__ = ["add_benchmark_command", "cmd_benchmark"]
 
+_DESCRIPTION = ("Run the paper's experiments (MoCap table, Table 1, Table 3, noise, missing "
+                "data, N ablation, K sweep, automatic K) as independent tasks and write "
+                "Markdown and CSV tables and PNG plots into --out. Finished tasks are cached "
+                "in OUT/cache: running the same command again resumes.")
+
 
 def _output_folder(path, what):
     """A folder to write into (created when absent): ValueError if a file is in the way."""
@@ -35,14 +40,10 @@ def add_benchmark_command(subparsers):
     """Register ``benchmark`` on the ``nrsfm`` argument parser's subparsers."""
     from ..experiments.plan import EXPERIMENTS
 
+    listed = "; ".join(f"{k}: {v}" for k, v in EXPERIMENTS.items())
     p = subparsers.add_parser(
         "benchmark", help="regenerate the paper's experiments (tables, plots) into a folder",
-        description="Run the paper's experiments (MoCap table, Table 1, Table 3, noise, "
-                    "missing data, N ablation, K sweep, automatic K) as independent tasks "
-                    "and write Markdown and CSV tables and PNG plots into --out. Finished "
-                    "tasks are cached in OUT/cache: running the same command again "
-                    "resumes. Experiments: " + "; ".join(f"{k}: {v}"
-                                                         for k, v in EXPERIMENTS.items()))
+        description=f"{_DESCRIPTION} Experiments: {listed}")
     p.add_argument("--data", help="folder with the MoCap .mat files (or its parent holding "
                                   "mocap/); default $NRSFM_DATA/mocap")
     p.add_argument("--out", required=True, help="output folder (tables, plots, cache/)")
