@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import nrsfm  # noqa: E402
 from data_tools.synthetic_video import make_video, tracking_errors  # noqa: E402
 from data_tools.video import Tracks, track_dense, track_sparse  # noqa: E402
-from nrsfm.video_cli import reconstruct_tracks  # noqa: E402
+from nrsfm.tracks import reconstruct_tracks  # noqa: E402
 
 
 def _measure(fn):
@@ -113,7 +113,7 @@ def scale_table(args):
     import rerun  # noqa: F401  (imported here so that its ~3 s import is not timed below)
 
     from nrsfm.stages.measurement import centre_rows, factorize, working_scale
-    from nrsfm.recording_video import save_video_recording
+    from nrsfm.views.video import save_video_recording
     from nrsfm.stages.rotations import estimate_rotations
     from nrsfm.stages.shape import pseudo_inverse_shapes, solve_shapes
 

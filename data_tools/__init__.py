@@ -2,7 +2,7 @@
 
 from .mocap import DAI_K, MOCAP_K, MOCAP_NAMES, load_all, load_mocap, mocap_dir
 from .noise import add_noise, drop_tracks
-from .sequence import Sequence
+from nrsfm.sequence import Sequence
 from .synthetic import MOTIONS, camera_rotations, default_sequence, make_synthetic
 from .synthetic_video import SURFACES, SyntheticVideo, make_video, tracking_errors
 from .video import (Tracks, load_frames, read_frames, track_dense, track_sparse,

@@ -14,8 +14,7 @@ import scipy.io
 
 from nrsfm.paths import data_dir as _data_root
 from nrsfm.paths import user_path
-
-from .sequence import Sequence
+from nrsfm.sequence import Sequence
 
 #: The shape-basis sizes K the organic-priors paper uses (its Table 1).
 MOCAP_K = {

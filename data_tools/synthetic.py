@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .sequence import Sequence
+from nrsfm.sequence import Sequence
 
 MOTIONS = ("smooth", "fast", "static", "random")
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .sequence import Sequence
+from nrsfm.sequence import Sequence
 
 SURFACES = ("sheet", "face")
 

@@ -69,6 +69,7 @@ def render(src: Path, timeout: int = 1200) -> Path:
         out = DOCS / name
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_bytes(data)
+    body = body.replace(str(HERE.parent) + os.sep, "")   # no machine paths in the docs
     head = (f"<!-- rendered by `python notebooks/build_notebooks.py --render` from "
             f"notebooks/src/{src.name} sha256={source_hash(src)}; do not edit -->\n\n")
     page = DOCS / f"{src.stem}.md"

@@ -1,4 +1,5 @@
-"""Atomic output files: write beside the target, then rename over it.
+"""Atomic output files (the one home of atomic writes): write beside the target, then
+rename over it.
 
 A write that fails half-way (disk full, file-size limit, an exception while the content is
 produced) leaves an existing output untouched and no partial file behind.
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_output", "check_output_path", "save_npz"]
+__all__ = ["atomic_output", "check_output_path", "save_npz", "write_text"]
 
 
 def _umask():
@@ -127,4 +128,23 @@ def save_npz(path, compressed=True, **arrays):
         with open(tmp, "wb") as f:  # a file object: numpy appends no suffix
             save(f, **arrays)
             f.flush()
+    return path
+
+
+def write_text(path, text):
+    """Write the string ``text`` to exactly ``path``, atomically (:func:`atomic_output`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The final file. Its folder must exist.
+    text : str
+
+    Returns
+    -------
+    path : Path
+    """
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        tmp.write_text(text)
     return path

@@ -318,3 +318,40 @@ def test_failed_writes_leave_existing_outputs_byte_identical(tmp_path, good):
     assert {p: digest(p) for p in (out, rrd)} == before
     leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
     assert leftovers == []
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["video", "v.avi", "--K", "0"], "--K"),
+    (["video", "v.avi", "--seed", "-1"], "--seed"),
+    (["video", "v.avi", "--step", "0"], "--step"),
+    (["track", "v.avi", "--max-frames", "x"], "--max-frames"),
+    (["benchmark", "--out", "o", "--workers", "0"], "--workers"),
+    (["benchmark", "--out", "o", "--seed", "-2"], "--seed"),
+    (["video", "v.avi", "--rrd", "v.txt"], ".rrd"),
+])
+def test_every_subcommand_checks_arguments_the_same_way(tmp_path, args, fragment):
+    """One set of validators and one exit status (2) for a bad command line, in every
+    subcommand; checked before any work (the video file does not exist)."""
+    proc = nrsfm(*args, cwd=tmp_path)
+    assert_one_line_failure(proc, fragment, code=2)
+
+
+def test_help_documents_the_exit_status(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "Exit status: 0 success, 1 error" in " ".join(capsys.readouterr().out.split())
+
+
+def test_core_does_not_import_data_tools():
+    """Dependencies one way: only the CLI and the experiment runner use data_tools."""
+    import re
+
+    top = {"cli", "experiments"}
+    offenders = []
+    for path in (ROOT / "nrsfm").rglob("*.py"):
+        rel = path.relative_to(ROOT / "nrsfm")
+        if rel.parts[0] in top:
+            continue
+        if re.search(r"^\s*(import data_tools|from data_tools\b)", path.read_text(), re.M):
+            offenders.append(str(rel))
+    assert offenders == []

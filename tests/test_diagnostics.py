@@ -120,7 +120,7 @@ def test_warning_class_and_report(tmp_path, capsys):
     text = res.diagnostics.summary()
     assert "WARNING" in text and "numerical_rank = 4" in text
     pytest.importorskip("rerun")
-    from nrsfm.recording import recording_content
+    from nrsfm.views import recording_content
 
     assert "## Diagnostics" in recording_content(res).report
     path = tmp_path / "planar.npz"

@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from nrsfm.io import atomic_output, check_output_path, save_npz
+from nrsfm.io import atomic_output, check_output_path, save_npz, write_text
 
 
 def test_save_npz_writes_exactly_the_name_given(tmp_path):
@@ -50,3 +50,12 @@ def test_check_output_path(tmp_path):
         with pytest.raises(PermissionError, match="not writable"):
             check_output_path("/sys/a.npz")
     assert os.listdir(tmp_path) == []          # the probe leaves nothing behind
+
+
+def test_write_text_is_atomic(tmp_path):
+    target = tmp_path / "t.json"
+    assert write_text(target, "{}") == target and target.read_text() == "{}"
+    with pytest.raises(TypeError):
+        write_text(target, None)                 # fails while writing: old file kept
+    assert target.read_text() == "{}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]

@@ -12,7 +12,8 @@ from rerun.chunk import RrdReader  # noqa: E402
 import data_tools  # noqa: E402
 import nrsfm  # noqa: E402
 from nrsfm.geometry import align_similarity as similarity_align  # noqa: E402
-from nrsfm.recording import (build_recording, camera_alignment, recording_content,  # noqa: E402
+from nrsfm.metrics import camera_alignment  # noqa: E402
+from nrsfm.views import (build_recording, recording_content,  # noqa: E402
                              save_recording)
 
 
@@ -151,6 +152,11 @@ def test_stage_recording(tmp_path, seq, pinv_result):
     assert sum(b.num_rows for b in data["/rotations/averaged"]["temporal"]) == F
     for name in ("W", "X_init", "theta"):
         assert data[f"/singular_values/{name}"]["static"]
+    # the documented top-level paths are exactly those written (all stages ran here)
+    from nrsfm.views import ENTITY_PATHS
+
+    tops = {"/" + p.strip("/").split("/")[0] for p in data if not p.startswith("/__")}
+    assert tops == set(ENTITY_PATHS)
 
 
 def test_content_values(seq, pinv_result):
@@ -298,7 +304,7 @@ def _views(node):
 @pytest.mark.parametrize("stages", [True, False])
 def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result, stages):
     """Each view of the default blueprint shows entities logged static or on ``frame``."""
-    from nrsfm.recording import make_blueprint
+    from nrsfm.views import make_blueprint
 
     result = _stand_in_stages(pinv_result, seq) if stages else pinv_result
     data = read_rrd(save_recording(result, tmp_path / "bp.rrd", seq))

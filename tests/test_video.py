@@ -9,7 +9,7 @@ cv2 = pytest.importorskip("cv2")
 from data_tools.synthetic_video import make_video, tracking_errors  # noqa: E402
 from data_tools.video import load_frames, track_dense, track_sparse  # noqa: E402
 from nrsfm.cli import build_parser  # noqa: E402
-from nrsfm.video_cli import reconstruct_tracks  # noqa: E402
+from nrsfm.tracks import reconstruct_tracks  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -238,7 +238,7 @@ def test_commands_raise_one_line_errors(tmp_path):
 
 
 def test_video_recording_is_small_and_decimated(tmp_path, video):
-    from nrsfm.recording_video import decimate, save_video_recording
+    from nrsfm.views.video import decimate, save_video_recording
 
     tr = track_dense(video.frames, step=4)
     seq = video.sequence(tr.tracks)

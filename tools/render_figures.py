@@ -27,8 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import data_tools  # noqa: E402
 import nrsfm  # noqa: E402
-from nrsfm import figures  # noqa: E402
-from nrsfm.recording import recording_content  # noqa: E402
+from nrsfm.views import figures, recording_content  # noqa: E402
 
 
 def render(seq, out, tag):

@@ -41,9 +41,8 @@ import numpy as np
 
 import data_tools
 import nrsfm
-from nrsfm import figures
-from nrsfm.recording import (output_path, recording_content, save_recording, show_recording,
-                             shown_path)
+from nrsfm.views import (figures, output_path, recording_content, save_recording,
+                         show_recording, shown_path)
 
 # %% [markdown]
 # ## The data
@@ -117,7 +116,7 @@ plt.show()
 # %% [markdown]
 # ## The Rerun recording
 #
-# `nrsfm.recording.save_recording` writes everything: shapes and cameras per frame
+# `nrsfm.views.save_recording` writes everything: shapes and cameras per frame
 # (timeline `frame`), the rotation samples of every triplet, the ADMM history (timeline
 # `admm_iteration`), singular values as bar charts and a markdown report. Open it with
 # `rerun <path>`; in an interactive notebook with `rerun-notebook` installed it is embedded

@@ -32,9 +32,9 @@ from scipy.linalg import subspace_angles
 
 import data_tools
 import nrsfm
-from nrsfm import figures, paths
+from nrsfm import paths
 from nrsfm.stages.measurement import centre_rows, factorize
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
+from nrsfm.views import figures, output_path, save_recording, show_recording, shown_path
 
 # %% [markdown]
 # ## Centring removes the translation

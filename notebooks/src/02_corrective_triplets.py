@@ -51,7 +51,8 @@ import nrsfm
 from nrsfm.ablation import corrective_triplets_from, solution_space
 from nrsfm.stages.corrective import constraint_matrix, corrective_triplets, triplet_cost
 from nrsfm.stages.measurement import factorize
-from nrsfm.recording import camera_alignment, output_path, show_recording, shown_path
+from nrsfm.metrics import camera_alignment
+from nrsfm.views import output_path, show_recording, shown_path
 
 
 def triplet_cameras(G, M_hat):

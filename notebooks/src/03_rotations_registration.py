@@ -38,7 +38,7 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.stages.measurement import factorize, working_scale
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
+from nrsfm.views import output_path, save_recording, show_recording, shown_path
 from nrsfm.ablation import STRATEGIES, estimate_rotations_ablation
 from nrsfm.geometry import rotation_angle
 from nrsfm.settings import rotation_settings

@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 
 import data_tools
 import nrsfm
-from nrsfm.recording import build_recording, output_path, show_recording, shown_path
+from nrsfm.views import build_recording, output_path, show_recording, shown_path
 from nrsfm.ablation import chordal_mean
 from nrsfm.geometry import average_rotations, project_to_so3, rotation_angle
 from nrsfm.stages.rotations import resolve_depth_signs

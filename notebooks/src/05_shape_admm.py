@@ -51,8 +51,7 @@ import numpy as np
 
 import data_tools
 import nrsfm
-from nrsfm import figures
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
+from nrsfm.views import figures, output_path, save_recording, show_recording, shown_path
 from nrsfm.stages.shape import phi, pseudo_inverse_shapes
 from nrsfm.stages.shape.admm import optimize_shapes, psvt, shape_weights
 

@@ -43,7 +43,7 @@ import data_tools
 import nrsfm
 from nrsfm import paths
 from nrsfm.published import published_value
-from nrsfm.recording import output_path, save_recording, show_recording, shown_path
+from nrsfm.views import output_path, save_recording, show_recording, shown_path
 
 MOCAP = paths.data_dir() / "mocap" if os.environ.get("NRSFM_DATA") else Path("/nonexistent")
 HAVE_DATA = MOCAP.is_dir()

@@ -35,7 +35,7 @@ from pathlib import Path
 from IPython.display import Image, Markdown, display
 
 from nrsfm.experiments import EXPERIMENTS, build_plan, run_benchmark, unique_tasks
-from nrsfm.recording import output_path, shown_path
+from nrsfm.views import output_path, shown_path
 
 HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
     Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()

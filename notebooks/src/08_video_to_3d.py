@@ -31,9 +31,9 @@ import numpy as np
 
 from data_tools.synthetic_video import make_video, tracking_errors
 from data_tools.video import track_dense, track_sparse
-from nrsfm.recording import output_path, show_recording, shown_path
-from nrsfm.recording_video import make_video_blueprint, save_video_recording
-from nrsfm.video_cli import reconstruct_tracks
+from nrsfm.tracks import reconstruct_tracks
+from nrsfm.views import (make_video_blueprint, output_path, save_video_recording,
+                         show_recording, shown_path)
 
 # %% [markdown]
 # ## The video

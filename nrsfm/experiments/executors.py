@@ -1,7 +1,7 @@
 """Run tasks on an executor with a resumable on-disk cache.
 
-Every finished task is written to ``cache_dir/<task.key>.json`` atomically (a temporary
-file in the same folder, then ``os.replace``), so an interrupted sweep, run again with the
+Every finished task is written to ``cache_dir/<task.key>.json`` atomically
+(:func:`nrsfm.io.write_text`), so an interrupted sweep, run again with the
 same cache folder, skips the tasks already done. Tasks run in local processes
 (``concurrent.futures.ProcessPoolExecutor``, ``workers`` of them; ``workers=1`` runs them
 in this process) or on a Dask distributed cluster (``scheduler`` address, or a
@@ -12,27 +12,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from .tasks import Task, run_task
+from ..io import write_text
+from .tasks import run_task
 
-__all__ = ["run_tasks", "load_cached", "write_atomic"]
-
-
-def write_atomic(path, text):
-    """Write ``text`` to ``path`` via a temporary file and ``os.replace`` (atomic)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+__all__ = ["run_tasks", "load_cached"]
 
 
 def load_cached(task, cache_dir):
@@ -55,7 +41,7 @@ def _store(task, rows, cache_dir):
     if cache_dir is None:
         return
     rec = dict(experiment=task.experiment, params=task.params_json, rows=rows)
-    write_atomic(Path(cache_dir) / f"{task.key}.json", json.dumps(rec, sort_keys=True))
+    write_text(Path(cache_dir) / f"{task.key}.json", json.dumps(rec, sort_keys=True))
 
 
 def _worker_init():
@@ -144,7 +130,3 @@ def _run_dask(todo, scheduler, done):
         if own:
             client.close()
 
-
-def as_task_list(specs):
-    """Build tasks from ``(experiment, params)`` pairs."""
-    return [Task.make(e, **p) for e, p in specs]

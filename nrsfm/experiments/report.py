@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..published import published_value
-from .executors import write_atomic
+from ..io import write_text
 
 __all__ = ["Table", "build_tables", "write_report"]
 
@@ -401,8 +401,8 @@ def write_report(out, plan, results, sequences, header=""):
     tables, extra = build_tables(plan, results, sequences)
     files = []
     for t in tables:
-        write_atomic(out / f"{t.name}.md", t.markdown())
-        write_atomic(out / f"{t.name}.csv", t.csv())
+        write_text(out / f"{t.name}.md", t.markdown())
+        write_text(out / f"{t.name}.csv", t.csv())
         files += [f"{t.name}.md", f"{t.name}.csv"]
     pngs = _plots(out, extra.get("noise"), extra.get("missing"), extra.get("n_info"),
                   extra.get("n_rows"), extra.get("k_rows"), extra.get("auto_rows"))
@@ -410,6 +410,6 @@ def write_report(out, plan, results, sequences, header=""):
     doc = [header] if header else []
     doc += [t.markdown() for t in tables]
     doc += [f"![{p[:-4]}]({p})\n" for p in pngs]
-    write_atomic(out / "README.md", "\n".join(doc))
+    write_text(out / "README.md", "\n".join(doc))
     files.append("README.md")
     return files, tables

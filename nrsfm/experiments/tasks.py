@@ -105,7 +105,7 @@ def _reconstruct(W, K, method="organic", **kw):
 
 
 # ----------------------------------------------------------------------------- runners
-def run_mocap(sequence, method, K=None, seed=0, data=None, table="mocap"):
+def run_mocap(sequence, method, K=None, seed=0, data=None):
     """Full pipeline on one sequence: errors and seconds per stage."""
     seq = load_sequence(sequence, data)
     K = seq.K if K is None else int(K)

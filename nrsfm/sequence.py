@@ -1,4 +1,5 @@
-"""The sequence type shared by the benchmark loader and the synthetic generator."""
+"""The sequence type: 2D tracks with optional 3D ground truth (benchmark loaders and the
+synthetic generators of :mod:`data_tools` build it; the views and the CLI read it)."""
 
 from __future__ import annotations
 

@@ -2,9 +2,9 @@
 
 Used by ``tools/render_figures.py`` and the notebooks. matplotlib is imported lazily (it is
 a development dependency). Every function draws into a new figure and returns it; the
-display alignment is the one of :mod:`nrsfm.recording` (per-frame similarity Procrustes for
+display alignment is the one of the Rerun recordings (per-frame similarity Procrustes for
 shapes, one global orthogonal alignment for cameras), computed by
-:func:`nrsfm.recording.recording_content`.
+:func:`nrsfm.views.content.recording_content`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ def _plt():
 def _content(result, sequence, content):
     if content is not None:
         return content
-    from .recording import recording_content
+    from .content import recording_content
 
     return recording_content(result, sequence)
 

@@ -1,16 +1,33 @@
-"""``nrsfm benchmark``: the paper's experiments in one command."""
+"""``nrsfm benchmark``: the paper's experiments in one command (:mod:`nrsfm.experiments`)."""
 
 from __future__ import annotations
 
-from .plan import EXPERIMENTS
+from pathlib import Path
+
+from .common import positive_int, seed
 
 __all__ = ["add_benchmark_command", "cmd_benchmark"]
 
+_DESCRIPTION = ("Run the paper's experiments (MoCap table, Table 1, Table 3, noise, missing "
+                "data, N ablation, K sweep, automatic K) as independent tasks and write "
+                "Markdown and CSV tables and PNG plots into --out. Finished tasks are cached "
+                "in OUT/cache: running the same command again resumes.")
+
+
+def _output_folder(path, what):
+    """A folder to write into (created when absent): ValueError if a file is in the way."""
+    path = Path(path).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {path} exists and is not a folder")
+    return path
+
 
 def cmd_benchmark(args):
-    from .runner import run_benchmark
+    """Run the plan, print where the tables went."""
+    from ..experiments.runner import run_benchmark
 
-    res = run_benchmark(args.out, data=args.data, only=args.only, sequences=args.sequences,
+    out = _output_folder(args.out, "--out")
+    res = run_benchmark(out, data=args.data, only=args.only, sequences=args.sequences,
                         quick=args.quick, workers=args.workers, scheduler=args.scheduler,
                         seed=args.seed, progress=not args.quiet)
     print(f"nrsfm benchmark: {res['n_tasks']} tasks ({res['n_cached']} cached) in "
@@ -21,14 +38,12 @@ def cmd_benchmark(args):
 
 def add_benchmark_command(subparsers):
     """Register ``benchmark`` on the ``nrsfm`` argument parser's subparsers."""
+    from ..experiments.plan import EXPERIMENTS
+
+    listed = "; ".join(f"{k}: {v}" for k, v in EXPERIMENTS.items())
     p = subparsers.add_parser(
         "benchmark", help="regenerate the paper's experiments (tables, plots) into a folder",
-        description="Run the paper's experiments (MoCap table, Table 1, Table 3, noise, "
-                    "missing data, N ablation, K sweep, automatic K) as independent tasks "
-                    "and write Markdown and CSV tables and PNG plots into --out. Finished "
-                    "tasks are cached in OUT/cache: running the same command again "
-                    "resumes. Experiments: " + "; ".join(f"{k}: {v}"
-                                                         for k, v in EXPERIMENTS.items()))
+        description=f"{_DESCRIPTION} Experiments: {listed}")
     p.add_argument("--data", help="folder with the MoCap .mat files (or its parent holding "
                                   "mocap/); default $NRSFM_DATA/mocap")
     p.add_argument("--out", required=True, help="output folder (tables, plots, cache/)")
@@ -40,12 +55,12 @@ def add_benchmark_command(subparsers):
     p.add_argument("--quick", action="store_true",
                    help="the quick set (fewer methods, noise levels, runs; ablations and "
                         "sweeps on pickup only): for CI")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=positive_int, default=1,
                    help="local worker processes (default 1)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the tasks on a Dask distributed scheduler, e.g. "
                         "tcp://host:8786 (needs the 'distributed' extra)")
-    p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="base seed (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_benchmark)
     return p

@@ -1,0 +1,128 @@
+"""From a video to 3D: ``nrsfm track VIDEO`` and ``nrsfm video VIDEO``.
+
+The reconstruction of tracks with lost points is library code:
+:func:`nrsfm.tracks.reconstruct_tracks`; tracking is :mod:`data_tools.video`.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .common import (add_rrd_option, output_path, positive_int, print_report, rrd_path, say,
+                     seed, write_recording)
+
+__all__ = ["add_video_commands", "cmd_track", "cmd_video"]
+
+
+def _track(args):
+    """Frames of ``args.video`` and their tracks (printed summary)."""
+    from data_tools.video import load_frames, track_dense, track_sparse
+
+    frames = load_frames(args.video, max_frames=args.max_frames)
+    t0 = time.perf_counter()
+    if args.dense:
+        tracks = track_dense(frames, step=args.step, fb_threshold=args.fb_threshold,
+                             max_points=args.max_points)
+    else:
+        tracks = track_sparse(frames, max_points=args.max_points or 2000,
+                              fb_threshold=args.fb_threshold)
+    say(args)(f"tracked in {time.perf_counter() - t0:.1f} s")
+    print(tracks.summary())
+    return frames, tracks
+
+
+def cmd_track(args):
+    """``nrsfm track VIDEO -o tracks.npz``."""
+    from ..io import atomic_output
+
+    out = args.output or Path(args.video).with_suffix("").as_posix() + "_tracks.npz"
+    out = output_path(out, "-o")                      # before the work
+    _, tracks = _track(args)
+    with atomic_output(out) as tmp:
+        tracks.save(tmp)
+    print(f"wrote {out} (W: {2 * tracks.n_frames} x {tracks.n_points}, NaN where lost)")
+    return 0
+
+
+def _save_video_rrd(rrd, frames, tracks, vr):
+    from ..views.video import save_video_recording
+
+    info = write_recording(rrd, lambda tmp: save_video_recording(tmp, frames, tracks,
+                                                                 vr.result, vr.used))
+    print(f"wrote Rerun recording {rrd} ({info['bytes'] / 1e6:.1f} MB, "
+          f"{info['seconds']:.1f} s; open it with: rerun {rrd})")
+
+
+def cmd_video(args):
+    """``nrsfm video VIDEO --rrd out.rrd [-o out.npz]``."""
+    from ..io import save_npz
+    from ..tracks import reconstruct_tracks
+
+    out = output_path(args.output, "-o") if args.output else None   # before the work
+    rrd = rrd_path(args, Path(args.video).stem + ".rrd")
+    frames, tracks = _track(args)
+    K = 1 if args.K is None else args.K
+    vr = reconstruct_tracks(tracks.W, K, method=args.method, seed=args.seed,
+                            missing="complete" if args.complete_tracks else "auto",
+                            progress=not args.quiet)
+    how = ("all tracks (missing data)" if vr.missing_data else
+           f"the {vr.n_complete} complete tracks of {vr.n_tracks}")
+    print(f"reconstructed {how} with K={K}")
+    print_report(vr.result)
+    if out is not None:
+        save_npz(out, W=tracks.W, used=vr.used, rotations=vr.result.rotations,
+                 shapes=vr.result.shapes, colors=tracks.colors, lost_at=tracks.lost_at, K=K,
+                 method=np.array(vr.result.method))
+        print(f"wrote {out}")
+    if rrd is not None:
+        _save_video_rrd(rrd, frames, tracks, vr)
+    return 0
+
+
+def _add_tracking(p):
+    p.add_argument("video", help="video file, or folder of images (sorted by name)")
+    p.add_argument("--dense", action="store_true",
+                   help="dense tracks: optical flow chained over a grid on the textured "
+                        "pixels (default: sparse corners + Lucas-Kanade)")
+    p.add_argument("--step", type=positive_int, default=4,
+                   help="grid spacing in pixels for --dense (default: 4)")
+    p.add_argument("--max-points", type=positive_int, default=None,
+                   help="at most this many tracks (default: 2000 sparse, all grid points "
+                        "dense)")
+    p.add_argument("--fb-threshold", type=float, default=1.0,
+                   help="forward-backward error (pixels) beyond which a track is lost "
+                        "(default: 1.0)")
+    p.add_argument("--max-frames", type=positive_int, default=None,
+                   help="read at most this many frames")
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+
+
+def add_video_commands(subparsers):
+    """Add the ``track`` and ``video`` subcommands to an argparse subparsers object."""
+    from ..pipeline import METHODS
+
+    p = subparsers.add_parser(
+        "track", help="track points through a video and write them (.npz, NaN where lost)")
+    _add_tracking(p)
+    p.add_argument("-o", "--output", help="output .npz (default: VIDEO_tracks.npz)")
+    p.set_defaults(func=cmd_track)
+
+    p = subparsers.add_parser(
+        "video", help="from a video to 3D: track, reconstruct, write a Rerun recording")
+    _add_tracking(p)
+    p.add_argument("--K", type=positive_int, default=None,
+                   help="number of shape bases (default: 1, the paper's dense setting)")
+    p.add_argument("--method", choices=sorted(METHODS), default="organic",
+                   help="pipeline (default: organic)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    p.add_argument("--complete-tracks", action="store_true",
+                   help="reconstruct only the tracks observed in every frame (default: every "
+                        "track seen in 2+ frames, lost entries completed as missing data; "
+                        "slower on dense tracks)")
+    add_rrd_option(p, "VIDEO_NAME.rrd")
+    p.add_argument("-o", "--output", help="write tracks, rotations and shapes (.npz)")
+    p.set_defaults(func=cmd_video)
+    return subparsers
