@@ -182,7 +182,7 @@ def project(S, R):
     return X[:, :2].reshape(2 * S.shape[0], S.shape[2]).copy(), X
 
 
-def reproject(seq, path="original", noise=0.0, seed=0, name=None):
+def reproject(seq, path="original", noise=0.0, seed=0, name=None, noise_seed=None):
     """``seq``'s ground-truth shapes seen by a new orthographic camera path.
 
     Parameters
@@ -195,9 +195,11 @@ def reproject(seq, path="original", noise=0.0, seed=0, name=None):
     noise : float
         Noise std as a fraction of the mean row std of the noise-free W, ``>= 0``.
     seed : int
-        Seeds the path and the noise.
+        Seeds the path (and the noise, unless ``noise_seed`` is given).
     name : str, optional
         Name of the result; defaults to ``"<seq.name>/<path>/noise<noise>"``.
+    noise_seed : int, optional
+        Seed of the noise; defaults to ``seed + 1``.
 
     Returns
     -------
@@ -211,10 +213,11 @@ def reproject(seq, path="original", noise=0.0, seed=0, name=None):
     R, label = _path_rotations(seq, path, F, seed)
     W, X = project(S, R)
     if noise:
-        W = add_noise(W, noise, seed=seed + 1)
+        W = add_noise(W, noise, seed=seed + 1 if noise_seed is None else noise_seed)
     return Sequence(name=name or f"{seq.name}/{label}/noise{noise:g}", W=W, shapes=X,
                     rotations=R, K=seq.K, edges=seq.edges, world_shapes=S,
                     extra=dict(path=label, turn=path_turn(R), noise=float(noise), seed=seed,
+                               noise_seed=noise_seed,
                                source=seq.name))
 
 
@@ -259,9 +262,10 @@ def parse_path(text):
                      f"'fast[<deg>]' or 'random'")
 
 
-def row_seed(seed, name, path, noise):
-    """Seed of one validation row: a function of the row, not of its place in the list."""
-    return (int(seed) * 1_000_003 + zlib.crc32(f"{name}|{path}|{noise:g}".encode())) % 2 ** 31
+def row_seed(seed, *key):
+    """Seed from a base seed and a key (e.g. name, path): not from a place in a list."""
+    text = "|".join(f"{k:g}" if isinstance(k, float) else str(k) for k in key)
+    return (int(seed) * 1_000_003 + zlib.crc32(text.encode())) % 2 ** 31
 
 
 def validation_set(rows, load, seed=0):
@@ -275,7 +279,9 @@ def validation_set(rows, load, seed=0):
     load : callable ``name -> Sequence``
         E.g. ``lambda n: data_tools.load_mocap(n, folder)``; called once per name.
     seed : int
-        Base seed; each row's seed is :func:`row_seed` of it (order does not matter).
+        Base seed. A row's camera path is drawn from ``row_seed(seed, name, path)`` (the
+        same path at every noise level) and its noise from ``row_seed(seed, name, path,
+        noise)``: rows do not depend on their order.
 
     Returns
     -------
@@ -285,5 +291,6 @@ def validation_set(rows, load, seed=0):
     for name, path, noise in rows:
         if name not in cache:
             cache[name] = load(name)
-        out.append(reproject(cache[name], path, noise, seed=row_seed(seed, name, path, noise)))
+        out.append(reproject(cache[name], path, noise, seed=row_seed(seed, name, path),
+                             noise_seed=row_seed(seed, name, path, float(noise))))
     return out

@@ -122,8 +122,12 @@ def test_validation_set_rows_do_not_depend_on_order(seq):
     first = dt.validation_set(rows, load, seed=1)
     second = dt.validation_set(rows[::-1], load, seed=1)[::-1]
     assert calls == ["s", "s"]  # loaded once per call
+    calls.clear()
     for a, b in zip(first, second):
         assert np.array_equal(a.W, b.W)
+    same_path = dt.validation_set([("s", "random", 0.0), ("s", "random", 0.05)], load, seed=1)
+    assert np.array_equal(same_path[0].rotations, same_path[1].rotations)
+    assert not np.allclose(same_path[0].W, same_path[1].W)
     assert [s.name for s in first] == ["synthetic-smooth/fast40/noise0",
                                       "synthetic-smooth/smooth62/noise0.02",
                                       "synthetic-smooth/random/noise0.01"]
