@@ -19,6 +19,7 @@ Formats:
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -36,8 +37,12 @@ EXTERNAL = {
 }
 
 
-def external_file(name, folder):
-    """Path of sequence ``name`` under ``folder`` (``folder/name/file`` or ``folder/file``)."""
+def external_file(name, folder=None):
+    """Path of sequence ``name`` under ``folder`` (``folder/name/file`` or ``folder/file``).
+
+    ``folder`` defaults to ``$NRSFM_EXTERNAL_DATA``.
+    """
+    folder = folder if folder is not None else os.environ.get("NRSFM_EXTERNAL_DATA")
     if name not in EXTERNAL:
         raise ValueError(f"unknown external sequence {name!r}; expected one of "
                          f"{sorted(EXTERNAL)}")
@@ -52,15 +57,16 @@ def external_file(name, folder):
     raise FileNotFoundError(f"{file} for {name!r} not found in {folder} or {folder / name}")
 
 
-def load_external(name, folder, K=None):
+def load_external(name, folder=None, K=None):
     """Load one external sequence as a :class:`Sequence` with camera-frame ground truth.
 
     Parameters
     ----------
     name : str
         A key of :data:`EXTERNAL`.
-    folder : str or Path
-        Folder holding ``<name>/<file>`` or ``<file>``.
+    folder : str or Path, optional
+        Folder holding ``<name>/<file>`` or ``<file>``; defaults to
+        ``$NRSFM_EXTERNAL_DATA``.
     K : int, optional
         Overrides the suggested K.
 

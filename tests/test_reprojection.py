@@ -176,20 +176,24 @@ def test_load_external_struct_format(tmp_path):
     assert s.K == dt.EXTERNAL["hulk"][2]
 
 
-def test_load_external_tracks3d_format(tmp_path):
+def test_load_external_tracks3d_format(tmp_path, monkeypatch):
     rng = np.random.default_rng(1)
     F, P = 7, 8
     T = rng.standard_normal((3, P, F))
     T[:, 3, 5] = 0.0  # point 3 lost in frame 5
     scipy.io.savemat(tmp_path / "back_L_3D.mat", {"track3D": T})
-    s = load_external("back", tmp_path, K=2)
+    monkeypatch.setenv("NRSFM_EXTERNAL_DATA", str(tmp_path))
+    s = load_external("back", K=2)
     keep = np.arange(P) != 3
     X = T[:, keep].transpose(2, 0, 1)
     assert s.K == 2 and s.W.shape == (2 * F, P - 1)
     assert np.allclose(s.shapes, X - X.mean(axis=2, keepdims=True))
 
 
-def test_load_external_errors(tmp_path):
+def test_load_external_errors(tmp_path, monkeypatch):
+    monkeypatch.delenv("NRSFM_EXTERNAL_DATA", raising=False)
+    with pytest.raises(FileNotFoundError, match="NRSFM_EXTERNAL_DATA"):
+        load_external("back")
     with pytest.raises(ValueError, match="unknown external sequence"):
         load_external("nope", tmp_path)
     with pytest.raises(FileNotFoundError, match="back_L_3D.mat"):
