@@ -38,6 +38,10 @@ LAM_FRACTION = 1e-4
 #: A track is "determined" when its fill amplifies measurement noise at most this much
 #: (see :func:`fill_gain`).
 MAX_GAIN = 3.0
+#: Default temporal lags (frames).
+LAGS = (0,)
+#: Rounds of (choose the determined tracks, fit M on them).
+MAX_ROUNDS = 4
 
 
 @dataclass
@@ -52,8 +56,8 @@ class FastCompletion:
         True where the point was observed in the frame.
     M : (2F, r) ndarray
         Motion factor (row pairs per frame).
-    B : (r, P) ndarray
-        Structure factor.
+    B : (r, n_lags P) ndarray
+        Structure factor (one column per point and lag, lag-major).
     t : (2F,) ndarray
         Per-row offset (the per-frame translation, before centring).
     rank, n_iter : int
@@ -61,6 +65,9 @@ class FastCompletion:
         Ridge weight (input units).
     converged : bool
         The relative decrease of the objective fell below ``tol`` before ``max_iter``.
+    gain : (P,) ndarray
+        :func:`fill_gain` of each point's lag-0 column.
+    lags : tuple of int
     history : dict of ndarrays
         ``cost`` per iteration (objective / (1/2 ||P_Omega(W - mean)||^2)).
     """
@@ -74,6 +81,8 @@ class FastCompletion:
     lam: float
     n_iter: int
     converged: bool
+    gain: np.ndarray = None
+    lags: tuple = (0,)
     history: dict = field(default_factory=dict)
 
     @property
@@ -82,12 +91,14 @@ class FastCompletion:
 
     def determined(self, max_gain=MAX_GAIN):
         """(P,) bool: tracks whose filled entries amplify noise at most ``max_gain`` x."""
-        return fill_gain(self.M, self.observed) <= max_gain
+        return self.gain <= max_gain
 
     def rms_residual(self):
-        """RMS of the fit on the observed entries (input units)."""
+        """RMS of the lag-0 fit on the observed entries (input units)."""
         o2 = np.repeat(self.observed, 2, axis=0)
-        fit = self.M @ self.B + self.t[:, None]
+        P = self.observed.shape[1]
+        j = self.lags.index(0)
+        fit = self.M @ self.B[:, j * P:(j + 1) * P] + self.t[:, None]
         return float(np.sqrt(np.mean((self.W - fit)[o2] ** 2)))
 
 
@@ -168,20 +179,26 @@ def _mask_groups(obs):
 
 
 def _solve_structure(Wz, groups, M, t, lam):
-    """B-step: per point, ridge least squares over the frames that observe it. (r, P).
+    """B-step: per point, ridge least squares over the frames that observe it.
 
     ``groups`` from :func:`_mask_groups`: the r x r normal matrix depends on the point only
-    through its observation pattern, so it is inverted once per pattern.
+    through its observation pattern, so it is inverted once per pattern. Returns
+    ``(B, data)``: B (r, P) and ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the
+    normal equations.
     """
     patterns, index = groups
     F2, r = M.shape
     Mf = M.reshape(F2 // 2, 2, r)
     G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
-    A = (patterns.astype(float) @ G).reshape(-1, r, r) + lam * np.eye(r)
-    inv = np.linalg.inv(A)                                    # (U, r, r)
+    A = (patterns.astype(float) @ G).reshape(-1, r, r)
+    inv = np.linalg.inv(A + lam * np.eye(r))                  # (U, r, r)
     o2 = np.repeat(patterns, 2, axis=1).astype(float)         # (U, 2F)
+    n_rows = o2[index].sum(axis=0)                            # (2F,) observed per row
     rhs = M.T @ Wz - ((M * t[:, None]).T @ o2.T)[:, index]    # (r, P)
-    return np.einsum("prs,sp->rp", inv[index], rhs)
+    B = np.einsum("prs,sp->rp", inv[index], rhs)
+    data = (np.sum(Wz * Wz) - 2.0 * t @ Wz.sum(axis=1) + (t * t) @ n_rows
+            - 2.0 * np.sum(B * rhs) + np.einsum("rp,prs,sp->", B, A[index], B))
+    return B, max(float(data), 0.0)
 
 
 def _solve_motion(Wz, obs, B, lam):
@@ -204,7 +221,51 @@ def _solve_motion(Wz, obs, B, lam):
     return X[:, :r], X[:, r], max(float(data), 0.0)
 
 
-def complete_low_rank(W, rank, observed=None, *, lam_fraction=LAM_FRACTION, tol=1e-7,
+def _balance(M, B):
+    """M' with ``M' B' = M B`` and ``M'^T M' = B' B'^T``: the split of the product with the
+    least ridge ``||M||^2 + ||B||^2`` (the alternation moves along this gauge slowly)."""
+    Qm, Rm = np.linalg.qr(M)
+    Qb, Rb = np.linalg.qr(B.T)
+    U, s, _ = np.linalg.svd(Rm @ Rb.T)
+    return Qm @ (U * np.sqrt(s))
+
+
+def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
+    """Alternate the M- and B-steps from M, t. Returns ``(M, t, costs, converged)``.
+
+    Each sweep is followed by an extrapolation of (M, t) along the sweep's step by
+    ``k^(1/3)`` (iteration k), kept when it lowers the cost (the line search Bro uses to
+    accelerate alternating least squares, 1998): plain alternation crawls along the
+    shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
+    """
+    groups = _mask_groups(obs)
+
+    def f(M, t):                                              # B-step and the cost
+        B, data = _solve_structure(Wz, groups, M, t, lam)
+        return B, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
+
+    B, c = f(M, t)
+    cost = []
+    for k in range(1, max(max_iter, 1) + 1):
+        M1, t1, _ = _solve_motion(Wz, obs, B, lam)
+        M1 = _balance(M1, B)
+        B1, c1 = f(M1, t1)
+        d = k ** (1.0 / 3.0)
+        if d > 1.0:
+            Me, te = M + d * (M1 - M), t + d * (t1 - t)
+            Be, ce = f(Me, te)
+            if ce < c1:
+                M1, t1, B1, c1 = Me, te, Be, ce
+        cost.append(c1)
+        done = c - c1 <= tol * c1
+        M, t, B, c = M1, t1, B1, c1
+        if done:
+            return M, t, cost, True
+    return M, t, cost, False
+
+
+def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRACTION,
+                      tol=1e-6,
                       max_iter=300):
     """Fill the missing entries of W by a rank-r factorisation of its observed entries.
 
@@ -216,6 +277,10 @@ def complete_low_rank(W, rank, observed=None, *, lam_fraction=LAM_FRACTION, tol=
         Rank r of ``W - t 1'`` (3K for K shape bases, Eq. 1); ``1 <= r < min(2F, P)``.
     observed : (F, P) bool array_like, optional
         Restricts the observation mask further (default: the NaN pattern).
+    lags : sequence of int
+        Temporal lags (frames), containing 0: the factorisation is of the lagged matrix
+        ``[S_d W]`` (2F, n_lags P), as in :mod:`nrsfm.completion`, and a missing entry is
+        the mean of its copies' fits; ``(0,)`` factorises W itself (frames in any order).
     lam_fraction : float
         Ridge weight as a fraction of sigma_1; positive.
     tol : float
@@ -241,6 +306,48 @@ def complete_low_rank(W, rank, observed=None, *, lam_fraction=LAM_FRACTION, tol=
         raise ValueError(f"lam_fraction must be positive; got {lam_fraction!r}")
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
+    lags = tuple(int(d) for d in lags)
+    if 0 not in lags or len(set(lags)) != len(lags):
+        raise ValueError(f"lags must be distinct integers including 0; got {lags}")
+    idx = _lag_index(F, lags)
+    Hz, obs_h = _lagged(Wz, obs, idx)
+    M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
+    fit = _average_copies(M @ B + t[:, None], idx)
+    o2 = np.repeat(obs, 2, axis=0)
+    j = lags.index(0)
+    gain = fill_gain(M, obs_h)[j * P:(j + 1) * P]
+    return FastCompletion(W=np.where(o2, Wz, fit), observed=obs, M=M, B=B, t=t, rank=r,
+                          lam=lam, n_iter=len(cost), converged=converged, gain=gain,
+                          lags=lags, history=dict(cost=np.asarray(cost)))
+
+
+def _lag_index(F, lags):
+    """(len(lags), F) frame index of each lagged copy (edges repeated)."""
+    return np.clip(np.arange(F)[None, :] + np.asarray(lags)[:, None], 0, F - 1)
+
+
+def _lagged(Wz, obs, idx):
+    """The lagged matrix ``[S_d W]_d`` (2F, n_lags P) and its mask (F, n_lags P)."""
+    F, P = obs.shape
+    Wf = Wz.reshape(F, 2, P)
+    Hz = np.concatenate([Wf[i].reshape(2 * F, P) for i in idx], axis=1)
+    return Hz, np.concatenate([obs[i] for i in idx], axis=1)
+
+
+def _average_copies(L, idx):
+    """(2F, P): each entry of W as the mean of its copies in the lagged L (2F, n_lags P)."""
+    n, F = idx.shape
+    P = L.shape[1] // n
+    acc, counts = np.zeros((F, 2, P)), np.zeros(F)
+    for j, i in enumerate(idx):
+        np.add.at(acc, i, L[:, j * P:(j + 1) * P].reshape(F, 2, P))
+        np.add.at(counts, i, 1.0)
+    return (acc / counts[:, None, None]).reshape(2 * F, P)
+
+
+def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
+    """Rank-r factorisation of the observed entries. ``(M, B, t, lam, costs, converged)``."""
+    P = obs.shape[1]
     o2 = np.repeat(obs, 2, axis=0)
     t = Wz.sum(axis=1) / o2.sum(axis=1)
     Z = np.where(o2, Wz - t[:, None], 0.0)                    # mean fill, centred
@@ -251,19 +358,23 @@ def complete_low_rank(W, rank, observed=None, *, lam_fraction=LAM_FRACTION, tol=
     root = np.sqrt(s)
     M, B = U * root, root[:, None] * Vt
     scale = 0.5 * float(np.sum(Z * Z))
-    groups = _mask_groups(obs)
+    core = fill_gain(M, obs) <= MAX_GAIN
+    if core.sum() <= r:
+        core[:] = True
     cost, converged = [], False
-    for _ in range(max_iter):
-        B = _solve_structure(Wz, groups, M, t, lam)
-        M, t, data = _solve_motion(Wz, obs, B, lam)
-        cost.append(0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale)
-        if len(cost) > 1 and cost[-2] - cost[-1] <= tol * cost[-1]:
-            converged = True
+    for _ in range(MAX_ROUNDS):
+        # fit M, t on the tracks the current M determines; an undetermined track only
+        # slows the alternation down (its b_p drifts along near-null directions)
+        M, t, c, converged = _alternate(Wz[:, core], obs[:, core], M, t, lam, tol,
+                                        max_iter - len(cost), scale)
+        cost += c
+        new = fill_gain(M, obs) <= MAX_GAIN
+        if new.sum() <= r or np.array_equal(new, core) or len(cost) >= max_iter:
             break
-    Wc = np.where(o2, Wz, M @ B + t[:, None])
-    return FastCompletion(W=Wc, observed=obs, M=M, B=B, t=t, rank=r, lam=lam,
-                          n_iter=len(cost), converged=converged,
-                          history=dict(cost=np.asarray(cost)))
+        core = new
+    B = _solve_structure(Wz, _mask_groups(obs), M, t, lam)[0]
+    return M, B, t, lam, cost, converged
+
 
 
 def fill_gain(M, observed):
@@ -296,4 +407,6 @@ def fill_gain(M, observed):
     Ai = np.linalg.pinv(A, hermitian=True)                    # (U, r, r)
     lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf)           # (U, F, 2, 2)
     gain = np.sqrt(np.clip(np.linalg.eigvalsh(lev)[..., -1], 0.0, None).max(axis=1))
+    w = np.linalg.eigvalsh(A)
+    gain[w[:, 0] <= 1e-12 * w[:, -1]] = np.inf                # b_p not determined at all
     return gain[index]

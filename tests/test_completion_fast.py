@@ -1,0 +1,121 @@
+"""Low-rank factorisation of the observed entries (nrsfm/stages/completion_fast.py)."""
+
+import numpy as np
+import pytest
+
+from nrsfm.stages import completion_fast as cf
+
+
+def _tracks(F=40, P=60, r=4, lost=0.3, late=0.1, noise=0.0, seed=0):
+    """Rank-r W plus per-row offsets; lost tracks (to the end) and late ones (from a frame)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(F)[:, None] / F
+    M = np.concatenate([np.sin(2 * np.pi * (k + 1) * t + rng.uniform(0, 6, (1, 2)))
+                        for k in range(r)], axis=1).reshape(2 * F, r)
+    W = M @ rng.standard_normal((r, P)) + 5.0 * rng.standard_normal((2 * F, 1))
+    W += noise * rng.standard_normal(W.shape)
+    obs = np.ones((F, P), bool)
+    n_lost, n_late = int(lost * P), int(late * P)
+    frames = np.arange(F)[:, None]
+    obs[:, :n_lost] = frames < rng.integers(F // 4, F, n_lost)
+    obs[:, n_lost:n_lost + n_late] = frames >= rng.integers(0, 3 * F // 4, n_late)
+    return W, obs
+
+
+def _nan(W, obs):
+    return np.where(np.repeat(obs, 2, axis=0), W, np.nan)
+
+
+def test_noise_free_low_rank_tracks_are_filled_exactly():
+    W, obs = _tracks()
+    res = cf.complete_low_rank(_nan(W, obs), 4, lags=(0,), tol=1e-12, max_iter=500)
+    miss = np.repeat(~obs, 2, axis=0)
+    assert np.abs(res.W - W)[miss].max() < 1e-2 * W.std()
+    np.testing.assert_array_equal(res.W[~miss], W[~miss])      # observed entries kept
+    np.testing.assert_array_equal(res.observed, obs)
+    assert res.rank == 4 and res.M.shape == (80, 4) and res.B.shape == (4, 60)
+    assert res.rms_residual() < 1e-3 * W.std()
+
+
+def test_noisy_fill_error_is_at_the_noise_level_and_beats_mean_fill():
+    W, obs = _tracks(noise=0.01, seed=1)
+    res = cf.complete_low_rank(_nan(W, obs), 4)
+    assert res.converged and res.n_iter < 300
+    miss = np.repeat(~obs, 2, axis=0)
+    det = np.repeat(res.determined()[None], 2 * obs.shape[0], axis=0) & miss
+    assert det.sum() > 0.5 * miss.sum()
+    rms = np.sqrt(np.mean((res.W - W)[det] ** 2))
+    assert rms < 0.05, rms                                     # noise 0.01, W std ~ 5
+    mean_fill = np.nanmean(_nan(W, obs), axis=1, keepdims=True)
+    assert rms < 0.05 * np.sqrt(np.mean((mean_fill - W)[miss] ** 2))
+
+
+def test_completion_is_scale_and_offset_equivariant():
+    W, obs = _tracks(noise=0.01, seed=2)
+    a = cf.complete_low_rank(_nan(W, obs), 4)
+    b = cf.complete_low_rank(_nan(1000.0 * W, obs), 4)
+    np.testing.assert_allclose(b.W, 1000.0 * a.W, rtol=1e-6, atol=1e-6 * np.abs(b.W).max())
+    shift = np.random.default_rng(0).standard_normal((W.shape[0], 1)) * 50
+    c = cf.complete_low_rank(_nan(W + shift, obs), 4)
+    np.testing.assert_allclose(c.W, a.W + shift, atol=1e-5 * np.abs(c.W).max())
+
+
+def test_structure_step_matches_per_point_least_squares():
+    W, obs = _tracks(F=12, P=15, r=3, seed=3)
+    Wz, obs = cf.observed_entries(_nan(W, obs))
+    rng = np.random.default_rng(0)
+    M, t = rng.standard_normal((24, 3)), rng.standard_normal(24)
+    B, data = cf._solve_structure(Wz, cf._mask_groups(obs), M, t, 0.5)
+    for p in range(15):
+        rows = np.repeat(obs[:, p], 2)
+        A = M[rows].T @ M[rows] + 0.5 * np.eye(3)
+        np.testing.assert_allclose(B[:, p], np.linalg.solve(A, M[rows].T @ (W[rows, p]
+                                                                            - t[rows])))
+    rows = np.repeat(obs, 2, axis=0)
+    assert np.isclose(data, np.sum((W - M @ B - t[:, None])[rows] ** 2))
+
+
+def test_fill_gain_is_small_for_long_tracks_and_infinite_for_undetermined_ones():
+    W, _ = _tracks(F=30, P=8, r=4)
+    M = cf._truncated_svd(W - W.mean(axis=1, keepdims=True), 4)[0]   # smooth motion
+    obs = np.ones((30, 4), bool)
+    obs[20:, 1] = False                                        # lost late: a short gap
+    obs[3:, 2] = False                                         # lost early: extrapolated
+    obs[1:, 3] = False                                         # one frame: 2 rows < r
+    g = cf.fill_gain(M, obs)
+    assert g[0] <= 1.0 + 1e-9
+    assert g[0] < g[1] < cf.MAX_GAIN < g[2] < np.inf
+    assert g[3] == np.inf
+
+
+def test_observed_entries_pair_coordinates_and_name_sparse_frames_and_points():
+    W, obs = _tracks(F=10, P=8, lost=0, late=0)
+    W[0, 3] = np.nan                                           # x only: the point is missing
+    Wz, o = cf.observed_entries(W)
+    assert not o[0, 3] and o.sum() == o.size - 1 and Wz[1, 3] == 0.0
+    W2 = W.copy()
+    W2[4:6, :6] = np.nan
+    with pytest.raises(ValueError, match="frame 2 is observed with 2 points"):
+        cf.observed_entries(W2)
+    W3 = W.copy()
+    W3[2:, 5] = np.nan
+    with pytest.raises(ValueError, match="point 5 is observed with 1 frames"):
+        cf.observed_entries(W3)
+    with pytest.raises(ValueError, match=r"shape \(2F, P\)"):
+        cf.observed_entries(np.zeros((5, 4)))
+    with pytest.raises(ValueError, match="infinite"):
+        cf.observed_entries(np.full((4, 4), np.inf))
+    with pytest.raises(ValueError, match="rank must be"):
+        cf.complete_low_rank(W, 8)
+
+
+def test_lags_tie_a_missing_entry_to_its_own_smooth_trajectory():
+    W, _ = _tracks(F=120, P=12, r=8, noise=0.01, seed=5)      # rank 8 of 12: weak
+    obs = np.random.default_rng(1).random((120, 12)) > 0.3     # uniform missing
+    miss = np.repeat(~obs, 2, axis=0)
+    err = {}
+    for lags in ((0,), (-1, 0, 1)):
+        res = cf.complete_low_rank(_nan(W, obs), 8, lags=lags)
+        assert res.B.shape == (8, 12 * len(lags))
+        err[lags] = np.sqrt(np.mean((res.W - W)[miss] ** 2))
+    assert err[(-1, 0, 1)] < 0.3 * err[(0,)], err
