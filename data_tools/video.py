@@ -153,6 +153,9 @@ class Tracks:
     raw : (F, 2, P) ndarray or None
         With ``keep_raw=True``: positions as if no track were ever stopped (for studies of
         what the check catches).
+    started_at : (P,) int ndarray or None
+        First frame of each track (NaN before it): 0, or the frame where it was detected
+        (``detect_every``); None means every track starts in frame 0.
     """
 
     tracks: np.ndarray
@@ -163,6 +166,7 @@ class Tracks:
     image_size: tuple
     params: dict = field(default_factory=dict)
     raw: np.ndarray | None = None
+    started_at: np.ndarray | None = None
 
     @property
     def n_frames(self):
@@ -180,13 +184,22 @@ class Tracks:
     @property
     def complete(self):
         """(P,) bool: tracks observed in every frame."""
-        return self.lost_at >= self.n_frames
+        return (self.lost_at >= self.n_frames) & (self.start == 0)
+
+    @property
+    def start(self):
+        """(P,) int: first frame of each track."""
+        if self.started_at is None:
+            return np.zeros(self.n_points, int)
+        return np.asarray(self.started_at)
 
     def summary(self):
         F, P = self.n_frames, self.n_points
         n = int(self.complete.sum())
+        late = int((self.start > 0).sum())
+        lost = int((self.lost_at < F).sum())
         return (f"{self.method} tracks: {P} points over {F} frames, {n} complete, "
-                f"{P - n} lost before the last frame")
+                f"{lost} lost before the last frame, {late} starting after frame 0")
 
     def save(self, path):
         """Write an .npz with ``W`` (2F, P, NaN where lost), ``tracks``, ``lost_at``,
@@ -194,6 +207,7 @@ class Tracks:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(path, W=self.W, tracks=self.tracks, lost_at=self.lost_at,
+                            started_at=self.start,
                             fb_error=self.fb_error.astype(np.float32), colors=self.colors,
                             image_size=np.asarray(self.image_size),
                             method=np.array(self.method))
@@ -225,19 +239,84 @@ def _colors(frame, pts):
     return img[yi, xi][:, ::-1].astype(np.uint8).copy()
 
 
-def _finish(history, fb, lost_at, frames0, pts0, method, size, params, keep_raw):
-    F = len(history)
-    raw = np.stack(history).transpose(0, 2, 1)               # (F, 2, P)
-    tracks = raw.astype(float).copy()
-    fb = np.stack(fb).astype(float)
-    frame_idx = np.arange(F)[:, None]
-    gone = frame_idx >= lost_at[None, :]
-    tracks[np.broadcast_to(gone[:, None, :], tracks.shape)] = np.nan
-    if not keep_raw:
-        fb[gone] = np.nan
-    return Tracks(tracks=tracks, lost_at=lost_at, fb_error=fb, colors=_colors(frames0, pts0),
-                  method=method, image_size=size, params=params,
-                  raw=raw.astype(np.float32) if keep_raw else None)
+class _TrackSet:
+    """The tracks while a tracker runs: positions, state, and the batches started later.
+
+    Every batch (the first frame's points, then each detection) keeps its points' positions
+    at detection (``pts0``) and neighbours within the batch, so the neighbour check maps
+    each point's own first frame to now.
+    """
+
+    def __init__(self, pts, frame, n_frames, n_neighbours, check):
+        self.n_frames, self.k, self.check = n_frames, n_neighbours, check
+        self.pts = np.zeros((0, 2), np.float32)
+        self.pts0 = self.pts.copy()
+        self.born = np.zeros(0, int)
+        self.lost_at = np.zeros(0, int)
+        self.active = np.zeros(0, bool)
+        self.colors = np.zeros((0, 3), np.uint8)
+        self.nbrs = np.zeros((0, max(n_neighbours, 1)), int)
+        self.history, self.fb = [], []
+        self.add(pts, 0, frame)
+
+    @property
+    def P(self):
+        return len(self.pts)
+
+    def add(self, new, f, frame):
+        """Start tracks at ``new`` (n, 2) in frame ``f`` (NaN before it)."""
+        new = np.asarray(new, np.float32).reshape(-1, 2)
+        n, P = len(new), self.P
+        nb = _neighbours(new, self.k) if self.check else None
+        if nb is None or nb.shape[1] < self.nbrs.shape[1]:
+            nb = np.repeat(np.arange(n)[:, None], self.nbrs.shape[1], axis=1)  # no check
+        self.nbrs = np.concatenate([self.nbrs, nb[:, :self.nbrs.shape[1]] + P])
+        self.pts = np.concatenate([self.pts, new])
+        self.pts0 = np.concatenate([self.pts0, new])
+        self.born = np.concatenate([self.born, np.full(n, f)])
+        self.lost_at = np.concatenate([self.lost_at, np.full(n, self.n_frames)])
+        self.active = np.concatenate([self.active, np.ones(n, bool)])
+        self.colors = np.concatenate([self.colors, _colors(frame, new)])
+        if f == 0:
+            self.history.append(self.pts.copy())
+            self.fb.append(np.zeros(self.P))
+        else:
+            self.history[-1] = np.concatenate([self.history[-1], new])
+            self.fb[-1] = np.concatenate([self.fb[-1], np.zeros(n)])
+
+    def free_space(self, cand, radius):
+        """(n,) bool: candidate points (n, 2) farther than ``radius`` from every live track."""
+        from scipy.spatial import cKDTree
+
+        live = self.pts[self.active]
+        if len(live) == 0 or len(cand) == 0:
+            return np.ones(len(cand), bool)
+        d, _ = cKDTree(live).query(cand, 1)
+        return d > radius
+
+    def finish(self, method, size, params, keep_raw):
+        F, P = len(self.history), self.P
+        raw = np.full((F, P, 2), np.nan, np.float32)
+        fb = np.full((F, P), np.nan)
+        for f, (h, e) in enumerate(zip(self.history, self.fb)):
+            raw[f, :len(h)], fb[f, :len(e)] = h, e
+        raw = raw.transpose(0, 2, 1)                          # (F, 2, P)
+        tracks = raw.astype(float)
+        frame_idx = np.arange(F)[:, None]
+        gone = (frame_idx >= self.lost_at[None, :]) | (frame_idx < self.born[None, :])
+        tracks[np.broadcast_to(gone[:, None, :], tracks.shape)] = np.nan
+        if not keep_raw:
+            fb[gone] = np.nan
+        late = self.born.any()
+        return Tracks(tracks=tracks, lost_at=self.lost_at, fb_error=fb, colors=self.colors,
+                      method=method, image_size=size, params=params,
+                      raw=raw if keep_raw else None,
+                      started_at=self.born.copy() if late else None)
+
+
+def _detect_due(f, n_frames, detect_every):
+    """New tracks are detected in frame f every ``detect_every`` frames (not the last)."""
+    return bool(detect_every) and f % int(detect_every) == 0 and f < n_frames - 1
 
 
 # --------------------------------------------------------------------------- neighbours
@@ -300,9 +379,9 @@ def _neighbour_residual(pts0, cur, alive, nbrs):
 
 def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=15,
                  levels=3, fb_threshold=1.0, max_residual=25.0, neighbour_px=2.0,
-                 n_neighbours=8, mask=None, min_points=8, keep_raw=False):
-    """Corners of the first frame tracked by pyramidal Lucas-Kanade with a forward-backward
-    check.
+                 n_neighbours=8, mask=None, min_points=8, keep_raw=False, detect_every=0):
+    """Corners of the first frame (and, with ``detect_every``, of later frames) tracked by
+    pyramidal Lucas-Kanade with a forward-backward check.
 
     Parameters
     ----------
@@ -332,6 +411,11 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
         Fewer trackable corners than this: the video is called textureless.
     keep_raw : bool
         Keep tracking lost points and return their positions in ``Tracks.raw``.
+    detect_every : int
+        Every this many frames (0: never), detect new corners in the textured parts of the
+        frame farther than ``min_distance`` from every live track, while fewer than
+        ``max_points`` tracks are live; a new track is NaN before its frame
+        (``Tracks.started_at``). ``mask`` applies to the first frame only.
 
     Returns
     -------
@@ -361,40 +445,59 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
     if n < min_points:
         raise ValueError(f"textureless video: the first frame has {n} trackable corners "
                          f"(need at least {min_points})")
-    pts = pts.reshape(-1, 2).astype(np.float32)
-    pts0 = pts.copy()
-    nbrs = None if neighbour_px is None else _neighbours(pts0, n_neighbours)
-    P = len(pts)
+    ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
     lk = dict(winSize=(window, window), maxLevel=levels,
               criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
-    history, fb = [pts.copy()], [np.zeros(P)]
-    lost_at = np.full(P, len(frames), int)
-    active = np.ones(P, bool)
     for f in range(1, len(frames)):
         cur = _gray(frames[f])
         if cur.shape != (H, W):
             raise ValueError(f"frame {f} is {cur.shape[::-1]} but frame 0 is {(W, H)}")
-        idx = np.arange(P) if keep_raw else np.flatnonzero(active)
-        nxt = pts.copy()
+        P = ts.P
+        idx = np.arange(P) if keep_raw else np.flatnonzero(ts.active)
+        nxt = ts.pts.copy()
         err = np.full(P, np.nan)
         if len(idx):
-            p = pts[idx].reshape(-1, 1, 2)
+            p = ts.pts[idx].reshape(-1, 1, 2)
             q, st, res = cv2.calcOpticalFlowPyrLK(prev, cur, p, None, **lk)
             b, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, q, None, **lk)
             e = np.linalg.norm((b - p).reshape(-1, 2), axis=1)
             q = q.reshape(-1, 2)
             bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~_inside(q, W, H)
                    | ~(e <= fb_threshold) | ~(res.ravel() <= max_residual))
-            _advance(f, idx, q, e, bad, nxt, err, active, lost_at)
-        _check_neighbours(f, pts0, nxt, active, lost_at, nbrs, neighbour_px)
-        history.append(nxt.copy())
-        fb.append(err)
-        pts, prev = nxt, cur
+            _advance(f, idx, q, e, bad, nxt, err, ts.active, ts.lost_at)
+        _check_neighbours(f, ts.pts0, nxt, ts.active, ts.lost_at,
+                          ts.nbrs if ts.check else None, neighbour_px)
+        ts.history.append(nxt.copy())
+        ts.fb.append(err)
+        ts.pts, prev = nxt, cur
+        if _detect_due(f, len(frames), detect_every):
+            _detect_corners(ts, f, cur, frames[f], max_points, quality, min_distance)
     params = dict(max_points=max_points, quality=quality, min_distance=min_distance,
                   window=window, levels=levels, fb_threshold=fb_threshold,
                   max_residual=max_residual, neighbour_px=neighbour_px,
-                  n_neighbours=n_neighbours)
-    return _finish(history, fb, lost_at, frames[0], pts0, "sparse", (H, W), params, keep_raw)
+                  n_neighbours=n_neighbours, detect_every=detect_every)
+    return ts.finish("sparse", (H, W), params, keep_raw)
+
+
+def _detect_corners(ts, f, gray, frame, max_points, quality, min_distance):
+    """Start tracks at corners of frame f in textured space that no live track covers."""
+    import cv2
+
+    room = int(max_points) - int(ts.active.sum())
+    if room <= 0:                     # (maxCorners = 0 would mean "no limit" to OpenCV)
+        return
+    free = texture_mask(gray).astype(np.uint8)
+    live = np.rint(ts.pts[ts.active]).astype(int)
+    H, W = free.shape
+    live = live[_inside(live, W, H)]
+    taken = np.zeros_like(free)
+    taken[live[:, 1], live[:, 0]] = 1
+    d = 2 * int(min_distance) + 1
+    taken = cv2.dilate(taken, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (d, d)))
+    pts = cv2.goodFeaturesToTrack(gray, maxCorners=room, qualityLevel=quality,
+                                  minDistance=min_distance, mask=free & (1 - taken))
+    if pts is not None and len(pts):
+        ts.add(pts.reshape(-1, 2), f, frame)
 
 
 # --------------------------------------------------------------------------- dense
@@ -430,10 +533,33 @@ def _flow_engine(name):
     raise ValueError(f"unknown flow {name!r}; expected 'dis', 'dis-fast' or 'farneback'")
 
 
+def _dense_mask(gray, erode):
+    """Textured pixels of a frame, closed and eroded by ``erode`` pixels (bool (H, W))."""
+    import cv2
+
+    m = texture_mask(gray).astype(np.uint8)
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * erode + 1, 2 * erode + 1))
+    m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k)
+    return cv2.erode(m, k) > 0
+
+
+def _detect_grid(ts, f, gray, frame, step, erode, max_points):
+    """Start tracks at the textured grid points of frame f that no live track covers."""
+    m = _dense_mask(gray, erode)
+    ys, xs = np.mgrid[0:m.shape[0]:int(step), 0:m.shape[1]:int(step)]
+    keep = m[ys, xs]
+    cand = np.stack([xs[keep], ys[keep]], axis=1).astype(np.float32)
+    cand = cand[ts.free_space(cand, float(step))]
+    if max_points is not None:
+        cand = cand[:max(int(max_points) - int(ts.active.sum()), 0)]
+    if len(cand):
+        ts.add(cand, f, frame)
+
+
 def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
                 neighbour_px=2.0, n_neighbours=8, flow="dis", erode=7, window=15,
-                min_points=8, max_points=None, keep_raw=False):
-    """Grid points of the first frame carried through the video by chained optical flow,
+                min_points=8, max_points=None, keep_raw=False, detect_every=0):
+    """Grid points of the first frame (and, with ``detect_every``, of later frames) carried through the video by chained optical flow,
     with a forward-backward check at every step.
 
     Parameters
@@ -463,6 +589,11 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
         Keep at most this many grid points (evenly subsampled).
     keep_raw : bool
         Keep carrying lost points (``Tracks.raw``).
+    detect_every : int
+        Every this many frames (0: never), start tracks at the grid points of the frame's
+        textured pixels (closed and eroded as for the first frame) farther than ``step``
+        from every live track, while fewer than ``max_points`` are live; a new track is NaN
+        before its frame (``Tracks.started_at``). ``mask`` applies to the first frame only.
 
     Returns
     -------
@@ -484,10 +615,7 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
     prev = _gray(frames[0])
     H, W = prev.shape
     if mask is None:
-        m = texture_mask(prev).astype(np.uint8)
-        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * erode + 1, 2 * erode + 1))
-        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k)
-        m = cv2.erode(m, k) > 0
+        m = _dense_mask(prev, erode)
     else:
         m = np.asarray(mask, bool)
         if m.shape != (H, W):
@@ -501,23 +629,19 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
                          f"frame (need at least {min_points})")
     if max_points is not None and len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, int(max_points)).astype(int)]
-    pts0 = pts.copy()
-    nbrs = None if neighbour_px is None else _neighbours(pts0, n_neighbours)
-    P = len(pts)
-    history, fb = [pts.copy()], [np.zeros(P)]
-    lost_at = np.full(P, len(frames), int)
-    active = np.ones(P, bool)
+    ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
     for f in range(1, len(frames)):
         cur = _gray(frames[f])
         if cur.shape != (H, W):
             raise ValueError(f"frame {f} is {cur.shape[::-1]} but frame 0 is {(W, H)}")
         fw = calc(prev, cur)
         bw = calc(cur, prev)
-        idx = np.arange(P) if keep_raw else np.flatnonzero(active)
-        nxt = pts.copy()
+        P = ts.P
+        idx = np.arange(P) if keep_raw else np.flatnonzero(ts.active)
+        nxt = ts.pts.copy()
         err = np.full(P, np.nan)
         if len(idx):
-            p = pts[idx]
+            p = ts.pts[idx]
             q = p + _sample(fw, p)
             back = q + _sample(bw, q)
             e = np.linalg.norm(back - p, axis=1)
@@ -526,16 +650,19 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
             diff = cv2.blur(cv2.absdiff(prev, warped).astype(np.float32), (window, window))
             res = _sample(diff, p)
             bad = ~_inside(q, W, H) | ~(e <= fb_threshold) | ~(res <= max_residual)
-            _advance(f, idx, q, e, bad, nxt, err, active, lost_at)
-        _check_neighbours(f, pts0, nxt, active, lost_at, nbrs, neighbour_px)
-        history.append(nxt.copy())
-        fb.append(err)
-        pts, prev = nxt, cur
+            _advance(f, idx, q, e, bad, nxt, err, ts.active, ts.lost_at)
+        _check_neighbours(f, ts.pts0, nxt, ts.active, ts.lost_at,
+                          ts.nbrs if ts.check else None, neighbour_px)
+        ts.history.append(nxt.copy())
+        ts.fb.append(err)
+        ts.pts, prev = nxt, cur
+        if _detect_due(f, len(frames), detect_every):
+            _detect_grid(ts, f, cur, frames[f], step, erode, max_points)
     params = dict(step=step, fb_threshold=fb_threshold, max_residual=max_residual,
                   neighbour_px=neighbour_px, n_neighbours=n_neighbours,
                   window=window, flow=flow, erode=erode,
-                  max_points=max_points)
-    return _finish(history, fb, lost_at, frames[0], pts0, "dense", (H, W), params, keep_raw)
+                  max_points=max_points, detect_every=detect_every)
+    return ts.finish("dense", (H, W), params, keep_raw)
 
 
 # --------------------------------------------------------------------------- compatibility

@@ -277,3 +277,50 @@ def test_wide_factorisation_matches_the_svd():
     # s_1, not to themselves
     np.testing.assert_allclose(f.singular_values, s, atol=1e-9 * s[0])
     assert f.singular_values.shape == s.shape
+
+
+# --------------------------------------------------------------------------- late tracks
+
+def _revealed_frames(n=11, reveal_at=5):
+    """The shifted texture of :func:`_shifted_frames`, flat grey right of x = 150 before
+    frame ``reveal_at`` (a region that becomes visible)."""
+    frames = _shifted_frames(n)
+    for f in range(reveal_at):
+        frames[f] = frames[f].copy()
+        frames[f][:, 150:] = 128
+    return frames
+
+
+@pytest.mark.parametrize("kind", ["sparse", "dense"])
+def test_trackers_start_tracks_in_newly_textured_space(kind):
+    frames = _revealed_frames()
+    run = ((lambda **kw: track_sparse(frames, min_distance=6, **kw)) if kind == "sparse"
+           else (lambda **kw: track_dense(frames, step=8, **kw)))
+    plain = run()
+    assert plain.started_at is None and (plain.start == 0).all()
+    tr = run(detect_every=3)
+    start = tr.start
+    late = start > 0
+    assert set(np.unique(start[late])) <= {3, 6, 9}            # every 3rd frame
+    F = len(frames)
+    for f in range(F):                                         # NaN before the first frame
+        assert np.isnan(tr.tracks[f, :, start > f]).all()
+    first = tr.tracks[start[late], :, np.flatnonzero(late)]    # (n, 2) at detection
+    assert np.isfinite(first).all()
+    revealed = first[:, 0] > 150 + 1.5 * 9                     # right of the curtain
+    assert revealed.sum() >= 10 and (start[late][revealed] >= 6).all()
+    assert not (tr.tracks[0, 0] > 150 + 1.5 * 9).any()         # nothing there in frame 0
+    gap = 6 if kind == "sparse" else 8                         # only where no track is
+    for f in np.unique(start[late]):
+        new, old = tr.tracks[f][:, start == f], tr.tracks[f][:, start < f]
+        old = old[:, np.isfinite(old).all(axis=0)]
+        d = np.linalg.norm(new[:, :, None] - old[:, None, :], axis=0).min(axis=1)
+        assert d.min() > gap - 1
+    # the late tracks follow the texture's motion (1.5, 0.5) px per frame
+    last = tr.tracks[F - 1][:, late]
+    ok = np.isfinite(last).all(axis=0)
+    assert ok.mean() > 0.8
+    moved = (last[:, ok] - first[ok].T) / (F - 1 - start[late][ok])
+    np.testing.assert_allclose(np.median(moved, axis=1), [1.5, 0.5], atol=0.1)
+    assert not tr.complete[late].any() and tr.complete.sum() == plain.complete.sum()
+    assert "starting after frame 0" in tr.summary()
