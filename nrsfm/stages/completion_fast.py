@@ -14,15 +14,30 @@ factors (the bilinear form of a nuclear-norm penalty, Cabral et al., ICCV 2013):
 
 It is solved by alternating exact least squares (the "ALS" baseline of Okatani, Yoshida &
 Deguchi, ICCV 2011, here with a ridge): with M fixed every column b_p is an r x r system
-over the frames that observe point p; with B fixed every frame's two rows (and their offset)
-are an (r + 1) x (r + 1) system over the points the frame observes. Both steps are batched
-Gram products, so one iteration costs O(|Omega| r^2) -- no SVD at all after the start,
-which is a rank-r truncated SVD (through the smaller Gram matrix) of the mean-filled W.
-The missing entries are then filled with ``M B + t`` and the observed ones kept.
+over the frames that observe point p (inverted once per observation pattern); with B fixed
+every frame's two rows and offset are an (r + 1) x (r + 1) system over the points the
+frame observes. Both steps are batched Gram products, so one iteration costs O(|Omega| r^2):
+no SVD after the start, a rank-r truncated SVD (through the smaller Gram matrix) of the
+mean-filled W. Two measures keep the alternation from crawling (Buchanan & Fitzgibbon,
+CVPR 2005, on its slow convergence): the factors are re-balanced after every sweep
+(``M'M = BB'``, the split of MB with the least ridge), and the sweep is extrapolated by
+``k^(1/3)`` when that lowers the cost (Bro's line search for alternating least squares).
+
+Tracks seen in a few frames only: a track's fill is an extrapolation whose noise gain
+(:func:`fill_gain`) grows without bound as its observed frames shrink. M and t are fitted
+on the *determined* tracks (gain <= ``MAX_GAIN``, re-chosen up to ``MAX_ROUNDS`` times);
+every track's b_p is then solved with that M. ``FastCompletion.determined()`` says which
+tracks the data pin down; the others are filled, but their 3D cannot be trusted.
+
+``lags=(-1, 0, 1)`` factorises the time-lagged matrix ``[S_-1 W, W, S_+1 W]`` instead (a
+missing entry is the mean of its copies' fits), which ties a missing entry to its own
+trajectory when the rank r leaves a frame's observations too few (MoCap: P = 41 points,
+r = 3K = 36); the default ``(0,)`` is the plain factorisation (dense tracks). Measurements:
+``benchmarks/missing_study.py``.
 
 The ridge is ``lam = lam_fraction * sigma_1`` (sigma_1: largest singular value of the
 mean-filled, row-centred W): computed from W alone and scale-equivariant (W times c gives
-the completion times c). Frames need not be in time order.
+the completion times c); a per-row offset added to W is carried by t.
 """
 
 from __future__ import annotations
