@@ -11,7 +11,11 @@ tracks (and the soft-impute completion). Prints two tables.
    beside the complete-track e3d on the same points.
 2. MoCap (issue 16, acceptance 2; needs NRSFM_DATA): 30 % missing in the tracking pattern
    and uniformly at random (``data_tools.drop_tracks``, seed 0), organic at the paper's K:
-   e3d of complete data, of the current soft-impute completion, and of the factorisation.
+   e3d of complete data, of the current soft-impute completion (``nrsfm.completion``), and
+   of the factorisation of W (lags 0) and of the lagged matrix (lags -1, 0, 1).
+3. Synthetic videos (``data_tools.synthetic_video``, sheet and face), sparse and dense
+   tracks with new tracks every ``--detect-every`` frames: the complete tracks alone
+   against every track seen in 2+ frames (factorisation, then the pipeline), K = 1.
 
     Run from the repository root, one BLAS thread:
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/missing_study.py
@@ -123,20 +127,81 @@ def mocap_table(args):
             old = complete_measurements(Wm)
             t_old = time.perf_counter() - t0
             e_old = nrsfm.reconstruct(old.W, K).errors(seq.shapes)["e3d"]
-            t0 = time.perf_counter()
-            new = complete_low_rank(Wm, rank_rule(Wm, K, args.rank))
-            t_new = time.perf_counter() - t0
-            e_new = nrsfm.reconstruct(new.W, K).errors(seq.shapes)["e3d"]
-            rows.append((name, pattern, K, new.rank, e0, e_old, t_old, e_new, t_new))
+            fact = []
+            for lags in ((0,), (-1, 0, 1)):
+                t0 = time.perf_counter()
+                new = complete_low_rank(Wm, rank_rule(Wm, K, args.rank), lags=lags)
+                t_new = time.perf_counter() - t0
+                e_new = nrsfm.reconstruct(new.W, K).errors(seq.shapes)["e3d"]
+                fact += [e_new, t_new, new.n_iter]
+            rows.append((name, pattern, K, new.rank, e0, e_old, t_old, *fact))
             print(f"  {name} {pattern} done", file=sys.stderr, flush=True)
     print(f"\nTable 2: MoCap, {100 * args.fraction:g} % missing, seed {args.seed}, organic "
           f"at the paper's K, rank rule {args.rank}\n")
     print("| sequence | pattern | K | rank | complete e3d | soft-impute e3d (x) | s "
-          "| factorisation e3d (x) | s |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for name, pat, K, r, e0, eo, to, en, tn in rows:
+          "| factorisation e3d (x) | s (iterations) | factorisation, lags -1..1, e3d (x) "
+          "| s (iterations) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, pat, K, r, e0, eo, to, e1, t1, n1, e2, t2, n2 in rows:
         print(f"| {name} | {pat} | {K} | {r} | {e0:.4f} | {eo:.4f} ({eo / e0:.2f}) | "
-              f"{to:.1f} | {en:.4f} ({en / e0:.2f}) | {tn:.1f} |")
+              f"{to:.1f} | {e1:.4f} ({e1 / e0:.2f}) | {t1:.1f} ({n1}) | {e2:.4f} "
+              f"({e2 / e0:.2f}) | {t2:.1f} ({n2}) |")
+
+
+def video_table(args):
+    from data_tools.synthetic_video import make_video
+    from data_tools.video import track_dense, track_sparse
+
+    rows = []
+    for surface in args.surfaces:
+        v = make_video(surface, n_frames=args.video_frames, seed=args.seed)
+        for kind in ("sparse", "dense"):
+            t0 = time.perf_counter()
+            tr = (track_sparse(v.frames, detect_every=args.detect_every) if kind == "sparse"
+                  else track_dense(v.frames, step=4, detect_every=args.detect_every))
+            t_track = time.perf_counter() - t0
+            rows.append((surface, kind, tr, t_track, *video_runs(v, tr)))
+            print(f"  {surface} {kind} done", file=sys.stderr, flush=True)
+    print(f"\nTable 3: synthetic videos, {args.video_frames} frames, new tracks every "
+          f"{args.detect_every} frames, K = 1; e3d over the frame-0 tracks on the surface "
+          f"(late tracks have no ground truth here)\n")
+    print("| video | tracks | complete | lost | late | track s | complete tracks: s, e3d "
+          "| all tracks (2+ frames): factorisation s, total s | e3d on the complete tracks "
+          "| e3d on the determined frame-0 tracks (n) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for surface, kind, tr, tt, tc, ec, tf, ta, ea, ed, nd in rows:
+        F = tr.n_frames
+        print(f"| {surface} {kind} | {tr.n_points} | {int(tr.complete.sum())} | "
+              f"{int((tr.lost_at < F).sum())} | {int((tr.start > 0).sum())} | {tt:.1f} | "
+              f"{tc:.1f}, {ec:.4f} | {tf:.1f}, {ta:.1f} | {ea:.4f} | {ed:.4f} ({nd}) |")
+
+
+def video_runs(v, tr):
+    """Complete tracks against all tracks seen in 2+ frames, on one tracked video."""
+    F = tr.n_frames
+    seen = np.isfinite(tr.tracks).all(axis=1).sum(axis=0) >= 2
+    first = seen & (tr.start == 0)
+    seq = v.sequence(tr.tracks[:, :, first])                   # frame-0 tracks on the surface
+    gt, ok = seq.shapes, seq.extra["valid"]
+    cols = np.flatnonzero(first)[ok]                           # tracks with ground truth
+    comp = np.isfinite(seq.W).all(axis=0)
+    t0 = time.perf_counter()
+    rc = nrsfm.reconstruct(seq.W[:, comp], 1)
+    tc = time.perf_counter() - t0
+    ec = e3d(rc.shapes, gt[:, :, comp])
+    late = np.flatnonzero(seen & (tr.start > 0))
+    W_all = tr.W[:, np.r_[cols, late]]
+    t0 = time.perf_counter()
+    fc = complete_low_rank(W_all, 3)
+    tf = time.perf_counter() - t0
+    ra = nrsfm.reconstruct(fc.W, 1)
+    ta = time.perf_counter() - t0
+    n = len(cols)
+    X = ra.shapes[:, :, :n]
+    det = fc.determined()[:n]
+    ea = e3d(X[:, :, comp], gt[:, :, comp])
+    ed = e3d(X[:, :, det], gt[:, :, det])
+    return tc, ec, tf, ta, ea, ed, int(det.sum())
 
 
 def rank_rule(W, K, rule):
@@ -162,7 +227,11 @@ def main(argv=None):
     p.add_argument("--fraction", type=float, default=0.3, help="MoCap missing fraction")
     p.add_argument("--rank", default="3K", choices=["3K", "auto"])
     p.add_argument("--sequences", nargs="+", default=["drink", "pickup", "yoga", "stretch"])
+    p.add_argument("--surfaces", nargs="+", default=["sheet", "face"])
+    p.add_argument("--video-frames", type=int, default=100)
+    p.add_argument("--detect-every", type=int, default=5)
     p.add_argument("--skip-dense", action="store_true")
+    p.add_argument("--skip-video", action="store_true")
     p.add_argument("--skip-mocap", action="store_true")
     args = p.parse_args(argv)
     warnings.simplefilter("ignore", RuntimeWarning)
@@ -172,6 +241,8 @@ def main(argv=None):
         dense_table(args)
     if not args.skip_mocap:
         mocap_table(args)
+    if not args.skip_video:
+        video_table(args)
 
 
 if __name__ == "__main__":
