@@ -119,3 +119,17 @@ def test_lags_tie_a_missing_entry_to_its_own_smooth_trajectory():
         assert res.B.shape == (8, 12 * len(lags))
         err[lags] = np.sqrt(np.mean((res.W - W)[miss] ** 2))
     assert err[(-1, 0, 1)] < 0.3 * err[(0,)], err
+
+
+def test_a_track_seen_in_two_frames_is_filled_better_under_the_tracks_prior():
+    for seed in (6, 7):
+        W, obs = _tracks(F=40, P=60, r=4, noise=0.01, seed=seed)
+        obs[2:, 0] = False                                     # 2 frames: b_0 undetermined
+        res = cf.complete_low_rank(_nan(W, obs), 4)
+        assert not res.determined()[0] and res.determined()[1:].mean() > 0.5
+        Wz, o = cf.observed_entries(_nan(W, obs))
+        B = cf._solve_structure(Wz, cf._mask_groups(o), res.M, res.t, res.lam)[0]
+        ridge = res.M @ B[:, 0] + res.t                       # without the prior
+        err = lambda x: np.sqrt(np.mean((x - W[:, 0])[4:] ** 2))  # noqa: E731
+        assert err(res.W[:, 0]) < 0.6 * err(ridge)
+        assert err(res.W[:, 0]) < 0.1 * np.nanstd(_nan(W, obs), axis=1).mean()

@@ -193,11 +193,12 @@ def _mask_groups(obs):
     return obs[:, first].T, index.ravel()
 
 
-def _solve_structure(Wz, groups, M, t, lam):
+def _solve_structure(Wz, groups, M, t, lam, prior_mean=None):
     """B-step: per point, ridge least squares over the frames that observe it.
 
     ``groups`` from :func:`_mask_groups`: the r x r normal matrix depends on the point only
-    through its observation pattern, so it is inverted once per pattern. Returns
+    through its observation pattern, so it is inverted once per pattern. ``lam``: the
+    ridge weight, or an (r, r) prior precision with ``prior_mean`` (r,). Returns
     ``(B, data)``: B (r, P) and ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the
     normal equations.
     """
@@ -206,11 +207,13 @@ def _solve_structure(Wz, groups, M, t, lam):
     Mf = M.reshape(F2 // 2, 2, r)
     G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
     A = (patterns.astype(float) @ G).reshape(-1, r, r)
-    inv = np.linalg.inv(A + lam * np.eye(r))                  # (U, r, r)
+    reg = lam * np.eye(r) if np.ndim(lam) == 0 else lam
+    inv = np.linalg.inv(A + reg)                              # (U, r, r)
     o2 = np.repeat(patterns, 2, axis=1).astype(float)         # (U, 2F)
     n_rows = o2[index].sum(axis=0)                            # (2F,) observed per row
     rhs = M.T @ Wz - ((M * t[:, None]).T @ o2.T)[:, index]    # (r, P)
-    B = np.einsum("prs,sp->rp", inv[index], rhs)
+    shift = 0.0 if prior_mean is None else (reg @ prior_mean)[:, None]
+    B = np.einsum("prs,sp->rp", inv[index], rhs + shift)
     data = (np.sum(Wz * Wz) - 2.0 * t @ Wz.sum(axis=1) + (t * t) @ n_rows
             - 2.0 * np.sum(B * rhs) + np.einsum("rp,prs,sp->", B, A[index], B))
     return B, max(float(data), 0.0)
@@ -327,13 +330,35 @@ def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRA
     idx = _lag_index(F, lags)
     Hz, obs_h = _lagged(Wz, obs, idx)
     M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
+    gain_h = fill_gain(M, obs_h)
+    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
     fit = _average_copies(M @ B + t[:, None], idx)
     o2 = np.repeat(obs, 2, axis=0)
     j = lags.index(0)
-    gain = fill_gain(M, obs_h)[j * P:(j + 1) * P]
+    gain = gain_h[j * P:(j + 1) * P]
     return FastCompletion(W=np.where(o2, Wz, fit), observed=obs, M=M, B=B, t=t, rank=r,
                           lam=lam, n_iter=len(cost), converged=converged, gain=gain,
                           lags=lags, history=dict(cost=np.asarray(cost)))
+
+
+def _posterior_structure(Wz, obs, M, t, B, determined):
+    """Every b_p again, under the prior the determined tracks give (empirical Bayes).
+
+    ``b_p ~ N(mu, S)`` with mu, S the mean and covariance of the determined tracks' b_p,
+    and white noise of the variance of their residuals: ``b_p = (A_p + sigma^2 S^-1)^-1
+    (M_p'(w_p - t_p) + sigma^2 S^-1 mu)``. A long track is unchanged (its A_p dominates);
+    a short one falls back towards the typical point where its frames say nothing.
+    Returns B unchanged when fewer than ``r + 2`` tracks are determined.
+    """
+    r = M.shape[1]
+    if determined.sum() < r + 2:
+        return B
+    o2 = np.repeat(obs[:, determined], 2, axis=0)
+    res = (Wz[:, determined] - M @ B[:, determined] - t[:, None])[o2]
+    sigma2 = float(np.mean(res ** 2))
+    mu = B[:, determined].mean(axis=1)
+    prec = sigma2 * np.linalg.pinv(np.cov(B[:, determined]), hermitian=True)
+    return _solve_structure(Wz, _mask_groups(obs), M, t, prec, prior_mean=mu)[0]
 
 
 def _lag_index(F, lags):
