@@ -95,11 +95,11 @@ def test_observed_entries_pair_coordinates_and_name_sparse_frames_and_points():
     assert not o[0, 3] and o.sum() == o.size - 1 and Wz[1, 3] == 0.0
     W2 = W.copy()
     W2[4:6, :6] = np.nan
-    with pytest.raises(ValueError, match="frame 2 is observed with 2 points"):
+    with pytest.raises(ValueError, match="frame 2 observes 2 points"):
         cf.observed_entries(W2)
     W3 = W.copy()
     W3[2:, 5] = np.nan
-    with pytest.raises(ValueError, match="point 5 is observed with 1 frames"):
+    with pytest.raises(ValueError, match="point 5 is observed in 1 frames"):
         cf.observed_entries(W3)
     with pytest.raises(ValueError, match=r"shape \(2F, P\)"):
         cf.observed_entries(np.zeros((5, 4)))
@@ -133,3 +133,46 @@ def test_a_track_seen_in_two_frames_is_filled_better_under_the_tracks_prior():
         err = lambda x: np.sqrt(np.mean((x - W[:, 0])[4:] ** 2))  # noqa: E731
         assert err(res.W[:, 0]) < 0.6 * err(ridge)
         assert err(res.W[:, 0]) < 0.1 * np.nanstd(_nan(W, obs), axis=1).mean()
+
+
+def test_lags_rule_and_completion_setting_through_reconstruct():
+    import data_tools as dt
+    import nrsfm
+    from nrsfm.settings import MeasurementSettings, Settings
+    from nrsfm.stages.completion import choose_lags
+
+    obs = np.ones((10, 40), bool)
+    assert choose_lags(obs, 20) == (-1, 0, 1) and choose_lags(obs, 6) == (0,)
+    obs[4, :30] = False                                        # one frame sees 10 points
+    assert choose_lags(obs, 6) == (-1, 0, 1) and choose_lags(obs, 3) == (0,)
+    with pytest.raises(ValueError, match="lags"):
+        MeasurementSettings(lags=(1, 2))
+    with pytest.raises(ValueError, match="completion"):
+        MeasurementSettings(completion="svd")
+    seq = dt.make_synthetic(F=40, P=30, K=1, seed=4)
+    Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="tracking")
+    res = {}
+    for name in ("factorisation", "soft_impute"):
+        s = Settings(measurement=MeasurementSettings(completion=name, lags=(0,)))
+        r = nrsfm.reconstruct(Wm, 1, settings=s)
+        res[name] = r
+        assert r.completion.lags == (0,) and r.params["settings"].measurement.completion == name
+    assert type(res["factorisation"].completion).__name__ == "FastCompletion"
+    assert type(res["soft_impute"].completion).__name__ == "CompletionResult"
+    auto = nrsfm.reconstruct(Wm, 1)                            # default: factorisation
+    assert auto.completion.lags == choose_lags(auto.observed, 3)
+    np.testing.assert_allclose(auto.shapes, res["factorisation"].shapes)
+
+
+def test_reconstruction_reports_the_undetermined_tracks():
+    import data_tools as dt
+    import nrsfm
+
+    seq = dt.make_synthetic(F=40, P=40, K=1, seed=5)
+    W = seq.W.copy()
+    W[4:, 0] = np.nan                                          # seen in 2 frames
+    r = nrsfm.reconstruct(W, 1)
+    assert r.fill_gain.shape == (40,) and r.undetermined[0] and r.undetermined.sum() == 1
+    assert "1 of 40 tracks undetermined" in r.summary()
+    full = nrsfm.reconstruct(seq.W, 1)
+    assert full.fill_gain is None and not full.undetermined.any()

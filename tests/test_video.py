@@ -324,3 +324,22 @@ def test_trackers_start_tracks_in_newly_textured_space(kind):
     np.testing.assert_allclose(np.median(moved, axis=1), [1.5, 0.5], atol=0.1)
     assert not tr.complete[late].any() and tr.complete.sum() == plain.complete.sum()
     assert "starting after frame 0" in tr.summary()
+
+
+def test_late_tracks_get_ground_truth_in_their_first_frame(video):
+    """A track that starts in frame f > 0 is located on the mesh in frame f: its true
+    projection matches where it was started, in that frame and the next ones."""
+    V = video.vertices.shape[2]
+    pix = video.project(video.vertices)                          # (F, 2, V) vertices
+    start = np.arange(V) % 4 * 3                                 # frames 0, 3, 6, 9
+    tracks = pix.copy()
+    for p in range(V):
+        tracks[:start[p], :, p] = np.nan                         # NaN before the start
+    gt = video.ground_truth(tracks)
+    ok = gt["valid"]
+    assert ok[start > 0].mean() > 0.5 and ok[start == 0].mean() > 0.5
+    late = ok & (start > 0)
+    err = np.linalg.norm(gt["pixels"] - pix, axis=1)[:, late]   # (F, n)
+    assert np.median(err) < 1e-6
+    seq = video.sequence(tracks)
+    assert seq.W.shape[1] == ok.sum() and np.isfinite(seq.shapes).all()
