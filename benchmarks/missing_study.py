@@ -6,16 +6,18 @@ tracks (and the soft-impute completion). Prints two tables.
    camera, noise as a fraction of W's mean row std; ``--lost`` of the tracks are lost from
    a frame drawn in [2, F) to the end, ``--late`` start at a frame drawn in [0, F - 2)
    (NaN before). Same data reconstructed with complete tracks and with the missing
-   entries, in one run: time, e3d over all points, and e3d over the tracks the completion
-   determines (fill gain <= ``MAX_GAIN``, ``nrsfm.stages.completion_fast.fill_gain``)
-   beside the complete-track e3d on the same points.
+   entries (``nrsfm.reconstruct``'s default completion), in one run: time, e3d over all
+   points, and e3d over the tracks the data determine (``Reconstruction.undetermined``:
+   fill gain <= ``MAX_GAIN``) beside the complete-track e3d on the same points.
 2. MoCap (issue 16, acceptance 2; needs NRSFM_DATA): 30 % missing in the tracking pattern
    and uniformly at random (``data_tools.drop_tracks``, seed 0), organic at the paper's K:
-   e3d of complete data, of the current soft-impute completion (``nrsfm.completion``), and
-   of the factorisation of W (lags 0) and of the lagged matrix (lags -1, 0, 1).
+   e3d of complete data and of ``nrsfm.reconstruct`` with each completion
+   (``MeasurementSettings.completion``: the factorisation, default, and soft-impute), lags
+   by the rule of ``nrsfm.stages.completion.choose_lags``.
 3. Synthetic videos (``data_tools.synthetic_video``, sheet and face), sparse and dense
-   tracks with new tracks every ``--detect-every`` frames: the complete tracks alone
-   against every track seen in 2+ frames (factorisation, then the pipeline), K = 1.
+   tracks with new tracks every ``--detect-every`` frames: ``reconstruct_tracks`` (the
+   path of ``nrsfm video``) on the complete tracks alone against every track seen in 2+
+   frames (reconstruct's default completion), K = 1.
 
     Run from the repository root, one BLAS thread:
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/missing_study.py
@@ -38,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import nrsfm  # noqa: E402
 from data_tools.synthetic import camera_rotations  # noqa: E402
 from nrsfm.metrics import e3d  # noqa: E402
-from nrsfm.stages.completion_fast import MAX_GAIN, complete_low_rank  # noqa: E402
+from nrsfm.stages.completion_fast import MAX_GAIN  # noqa: E402
 
 
 def dense_sequence(P, F, K, noise, lost, late, seed):
@@ -85,12 +87,10 @@ def dense_table(args):
     full = nrsfm.reconstruct(W, K)
     t_full = time.perf_counter() - t0
     t0 = time.perf_counter()
-    comp = complete_low_rank(Wm, 3 * K)
-    t_comp = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    res = nrsfm.reconstruct(comp.W, K)
-    t_miss = t_comp + time.perf_counter() - t0
-    det = comp.determined()
+    res = nrsfm.reconstruct(Wm, K)                             # the default completion
+    t_miss = time.perf_counter() - t0
+    comp, t_comp = res.completion, res.timings["completion"]
+    det = ~res.undetermined
     e_full, e_all = e3d(full.shapes, gt), e3d(res.shapes, gt)
     e_full_det = e3d(full.shapes[:, :, det], gt[:, :, det])
     e_det = e3d(res.shapes[:, :, det], gt[:, :, det])
@@ -102,7 +102,8 @@ def dense_table(args):
           "| complete-track e3d, same tracks | bound 1.2 x + .002 |")
     print("|---|---|---|---|---|---|---|")
     print(f"| complete tracks | {t_full:.1f} | 1 | {e_full:.4f} | - | - | - |")
-    print(f"| missing: factorisation ({comp.n_iter} iterations, {t_comp:.1f} s) + pipeline "
+    print(f"| missing: completion ({comp.n_iter} iterations, lags {comp.lags}, "
+          f"{t_comp:.1f} s) + pipeline "
           f"| {t_miss:.1f} | {t_miss / t_full:.2f} | {e_all:.4f} | {e_det:.4f} "
           f"({det.sum()} of {P}) | {e_full_det:.4f} | {1.2 * e_full_det + 0.002:.4f} |")
     nobs = observed.sum(axis=0)
@@ -114,38 +115,35 @@ def dense_table(args):
 
 def mocap_table(args):
     import data_tools as dt
-    from nrsfm.completion import complete_measurements
+    from nrsfm.settings import MeasurementSettings, Settings
 
     rows = []
     for name in args.sequences:
         seq = dt.load_mocap(name)
         K = seq.K
         e0 = nrsfm.reconstruct(seq.W, K).errors(seq.shapes)["e3d"]
-        for pattern in ("tracking", "uniform"):
+        for pattern in args.patterns:
             Wm, mask = dt.drop_tracks(seq.W, args.fraction, seed=args.seed, pattern=pattern)
-            t0 = time.perf_counter()
-            old = complete_measurements(Wm)
-            t_old = time.perf_counter() - t0
-            e_old = nrsfm.reconstruct(old.W, K).errors(seq.shapes)["e3d"]
-            fact = []
-            for lags in ((0,), (-1, 0, 1)):
+            row = [name, pattern, K, e0]
+            for completion in args.completions:
+                s = Settings(measurement=MeasurementSettings(completion=completion))
                 t0 = time.perf_counter()
-                new = complete_low_rank(Wm, rank_rule(Wm, K, args.rank), lags=lags)
-                t_new = time.perf_counter() - t0
-                e_new = nrsfm.reconstruct(new.W, K).errors(seq.shapes)["e3d"]
-                fact += [e_new, t_new, new.n_iter]
-            rows.append((name, pattern, K, new.rank, e0, e_old, t_old, *fact))
+                r = nrsfm.reconstruct(Wm, K, settings=s)
+                e = r.errors(seq.shapes)["e3d"]
+                row += [e, e / e0, time.perf_counter() - t0, r.timings["completion"],
+                        r.completion.n_iter, r.completion.lags]
+            rows.append(row)
             print(f"  {name} {pattern} done", file=sys.stderr, flush=True)
     print(f"\nTable 2: MoCap, {100 * args.fraction:g} % missing, seed {args.seed}, organic "
-          f"at the paper's K, rank rule {args.rank}\n")
-    print("| sequence | pattern | K | rank | complete e3d | soft-impute e3d (x) | s "
-          "| factorisation e3d (x) | s (iterations) | factorisation, lags -1..1, e3d (x) "
-          "| s (iterations) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for name, pat, K, r, e0, eo, to, e1, t1, n1, e2, t2, n2 in rows:
-        print(f"| {name} | {pat} | {K} | {r} | {e0:.4f} | {eo:.4f} ({eo / e0:.2f}) | "
-              f"{to:.1f} | {e1:.4f} ({e1 / e0:.2f}) | {t1:.1f} ({n1}) | {e2:.4f} "
-              f"({e2 / e0:.2f}) | {t2:.1f} ({n2}) |")
+          f"at the paper's K, nrsfm.reconstruct with each completion (lags by the rule)\n")
+    head = " | ".join(f"{c}: e3d (x), s total (completion, iterations, lags)"
+                      for c in args.completions)
+    print(f"| sequence | pattern | K | complete e3d | {head} |")
+    print("|---|---|---|---|" + "---|" * len(args.completions))
+    for name, pat, K, e0, *res in rows:
+        cells = [f"{res[i]:.4f} ({res[i + 1]:.2f}), {res[i + 2]:.1f} ({res[i + 3]:.1f}, "
+                 f"{res[i + 4]}, {res[i + 5]})" for i in range(0, len(res), 6)]
+        print(f"| {name} | {pat} | {K} | {e0:.4f} | " + " | ".join(cells) + " |")
 
 
 def video_table(args):
@@ -155,7 +153,7 @@ def video_table(args):
     rows = []
     for surface in args.surfaces:
         v = make_video(surface, n_frames=args.video_frames, seed=args.seed)
-        for kind in ("sparse", "dense"):
+        for kind in args.kinds:
             t0 = time.perf_counter()
             tr = (track_sparse(v.frames, detect_every=args.detect_every) if kind == "sparse"
                   else track_dense(v.frames, step=4, detect_every=args.detect_every))
@@ -163,56 +161,43 @@ def video_table(args):
             rows.append((surface, kind, tr, t_track, *video_runs(v, tr)))
             print(f"  {surface} {kind} done", file=sys.stderr, flush=True)
     print(f"\nTable 3: synthetic videos, {args.video_frames} frames, new tracks every "
-          f"{args.detect_every} frames, K = 1; e3d over the frame-0 tracks on the surface "
-          f"(late tracks have no ground truth here)\n")
-    print("| video | tracks | complete | lost | late | track s | complete tracks: s, e3d "
-          "| all tracks (2+ frames): factorisation s, total s | e3d on the complete tracks "
-          "| e3d on the determined frame-0 tracks (n) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for surface, kind, tr, tt, tc, ec, tf, ta, ea, ed, nd in rows:
+          f"{args.detect_every} frames, K = 1, nrsfm.tracks.reconstruct_tracks (the path of "
+          f"nrsfm video); e3d against the ground truth of every used track on the surface "
+          f"(late tracks located in their first frame)\n")
+    print("| video | tracks | complete | lost | late | track s | --complete-tracks: s, e3d "
+          "| all tracks (2+ frames): s, e3d | e3d on the complete tracks | e3d on the "
+          "determined tracks | undetermined |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for surface, kind, tr, tt, tc, ec, ta, ea, eac, ead, nu in rows:
         F = tr.n_frames
         print(f"| {surface} {kind} | {tr.n_points} | {int(tr.complete.sum())} | "
               f"{int((tr.lost_at < F).sum())} | {int((tr.start > 0).sum())} | {tt:.1f} | "
-              f"{tc:.1f}, {ec:.4f} | {tf:.1f}, {ta:.1f} | {ea:.4f} | {ed:.4f} ({nd}) |")
+              f"{tc:.1f}, {ec:.4f} | {ta:.1f}, {ea:.4f} | {eac:.4f} | {ead:.4f} | {nu} |")
 
 
 def video_runs(v, tr):
-    """Complete tracks against all tracks seen in 2+ frames, on one tracked video."""
-    F = tr.n_frames
-    seen = np.isfinite(tr.tracks).all(axis=1).sum(axis=0) >= 2
-    first = seen & (tr.start == 0)
-    seq = v.sequence(tr.tracks[:, :, first])                   # frame-0 tracks on the surface
-    gt, ok = seq.shapes, seq.extra["valid"]
-    cols = np.flatnonzero(first)[ok]                           # tracks with ground truth
-    comp = np.isfinite(seq.W).all(axis=0)
-    t0 = time.perf_counter()
-    rc = nrsfm.reconstruct(seq.W[:, comp], 1)
-    tc = time.perf_counter() - t0
-    ec = e3d(rc.shapes, gt[:, :, comp])
-    late = np.flatnonzero(seen & (tr.start > 0))
-    W_all = tr.W[:, np.r_[cols, late]]
-    t0 = time.perf_counter()
-    fc = complete_low_rank(W_all, 3)
-    tf = time.perf_counter() - t0
-    ra = nrsfm.reconstruct(fc.W, 1)
-    ta = time.perf_counter() - t0
-    n = len(cols)
-    X = ra.shapes[:, :, :n]
-    det = fc.determined()[:n]
-    ea = e3d(X[:, :, comp], gt[:, :, comp])
-    ed = e3d(X[:, :, det], gt[:, :, det])
-    return tc, ec, tf, ta, ea, ed, int(det.sum())
+    """``--complete-tracks`` against every track seen in 2+ frames (the default), on one
+    tracked video: seconds and e3d of each; for the latter also e3d on the complete tracks
+    and on the tracks the data determine, and how many are undetermined."""
+    from nrsfm.tracks import reconstruct_tracks
 
-
-def rank_rule(W, K, rule):
-    """Rank of the factorisation: ``3K``, or ``auto``: the rank rule of ``choose_K`` on the
-    mean-filled W."""
-    if rule == "3K":
-        return 3 * K
-    from nrsfm.experiments.autok import choose_K
-
-    filled = np.where(np.isnan(W), np.nanmean(W, axis=1, keepdims=True), W)
-    return choose_K(filled)[1]["rank"]
+    gt = v.ground_truth(tr.tracks)
+    cam = v.pixel_scale * gt["camera"]                         # (F, 3, P), NaN off-surface
+    ok = gt["valid"]
+    out = []
+    for missing in ("complete", "auto"):
+        t0 = time.perf_counter()
+        vr = reconstruct_tracks(tr.W, 1, missing=missing)
+        out.append(time.perf_counter() - t0)
+        cols = np.flatnonzero(vr.used)
+        keep = ok[cols]
+        X, G = vr.result.shapes[:, :, keep], cam[:, :, cols[keep]]
+        out.append(e3d(X, G))
+    comp = tr.complete[cols[keep]]
+    det = ~vr.result.undetermined[keep]
+    out += [e3d(X[:, :, comp], G[:, :, comp]), e3d(X[:, :, det], G[:, :, det]),
+            int(vr.result.undetermined.sum())]
+    return out
 
 
 def main(argv=None):
@@ -225,9 +210,11 @@ def main(argv=None):
     p.add_argument("--late", type=float, default=0.1)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fraction", type=float, default=0.3, help="MoCap missing fraction")
-    p.add_argument("--rank", default="3K", choices=["3K", "auto"])
+    p.add_argument("--patterns", nargs="+", default=["tracking", "uniform"])
+    p.add_argument("--completions", nargs="+", default=["factorisation", "soft_impute"])
     p.add_argument("--sequences", nargs="+", default=["drink", "pickup", "yoga", "stretch"])
     p.add_argument("--surfaces", nargs="+", default=["sheet", "face"])
+    p.add_argument("--kinds", nargs="+", default=["sparse", "dense"])
     p.add_argument("--video-frames", type=int, default=100)
     p.add_argument("--detect-every", type=int, default=5)
     p.add_argument("--skip-dense", action="store_true")

@@ -10,8 +10,9 @@ Entity paths (timeline ``frame``):
   did not use it.
 * ``/video/lost``: Points2D, red dots (larger) at the last position of every (shown) track lost
   at or before this frame.
-* ``/world/estimate``: Points3D, the reconstructed shape (decimated), coloured from the
-  video; similarity-aligned per frame onto the ground truth when one is given (as ``e3d``).
+* ``/world/estimate``: Points3D, the reconstructed shape of the tracks the data determine
+  (decimated; the undetermined ones are extrapolations), coloured from the video;
+  similarity-aligned per frame onto the ground truth when one is given (as ``e3d``).
 * ``/world/ground_truth``: Points3D, the true shape (same points), blue.
 * ``/errors/e3d``: per-frame error when a ground truth is given; ``/tracks/alive``: number
   of tracks still observed.
@@ -138,8 +139,12 @@ def _log_tracks(rec, rr, tracks, colors, zoom, max_points):
 
 
 def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
-    """The 3D estimate (and ground truth); returns (points drawn, errors)."""
-    X = np.asarray(result.shapes)
+    """The 3D estimate of the tracks the data determine (and their ground truth); returns
+    (points drawn, errors)."""
+    det = ~result.undetermined
+    X = np.asarray(result.shapes)[:, :, det]
+    if shapes_gt is not None:
+        shapes_gt = np.asarray(shapes_gt)[:, :, det]
     fr = np.arange(X.shape[0])
     sel3 = decimate(X.shape[2], max_points)
     errs = {}
@@ -154,7 +159,7 @@ def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
         X_disp = X[:, :, sel3] - X.mean(axis=2, keepdims=True)
         X_disp = X_disp.transpose(0, 2, 1).astype(np.float32)
     rl.send_points(rec, rr, "/world/estimate", X_disp, fr)
-    col = tracks.colors[np.flatnonzero(used)][sel3]
+    col = tracks.colors[np.flatnonzero(used)[det]][sel3]
     rec.log("/world/estimate", rr.Points3D.from_fields(colors=col, radii=[-2.0]),
             static=True)
     return len(sel3), errs
@@ -170,7 +175,8 @@ def _video_report(tracks, result, frames, zoom, n2, n3, errs, report):
         lines += ["", f"Reconstruction: method {result.method}, K = {result.K}, "
                       f"{result.n_points} tracks used of {tracks.n_points}, "
                       f"{int(result.undetermined.sum())} of them undetermined (seen in "
-                      f"too few frames: their 3D is an extrapolation, drawn orange)."]
+                      f"too few frames: their 3D is an extrapolation, drawn orange in 2D "
+                      f"and left out of the 3D view)."]
         lines += [f"- {k}: {v:.4g}" for k, v in errs.items()]
         lines += [f"- time {k}: {v:.2f} s" for k, v in result.timings.items()]
     if report:
