@@ -224,12 +224,10 @@ def main(argv=None):
     warnings.simplefilter("ignore", RuntimeWarning)
     print(f"threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; timings on a "
           f"shared 2-core machine")
-    if not args.skip_dense:
-        dense_table(args)
-    if not args.skip_mocap:
-        mocap_table(args)
-    if not args.skip_video:
-        video_table(args)
+    tables = ((args.skip_dense, dense_table), (args.skip_mocap, mocap_table),
+              (args.skip_video, video_table))
+    for table in (table for skip, table in tables if not skip):
+        table(args)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ The paper completes W with Cabral et al.'s method and then runs its algorithm on
 completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``), by
 default with the rank-3K factorisation of the observed entries of
 :mod:`nrsfm.stages.completion_fast`, which scales to video (no SVD per iteration) and
-measured better on every case of ``docs/missing_data_scale.md``; soft-impute stays as
+was more accurate on every case of ``docs/missing_data_scale.md``; soft-impute stays as
 ``MeasurementSettings(completion="soft_impute")``. :func:`complete` chooses between them.
 """
 
