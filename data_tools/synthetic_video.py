@@ -387,8 +387,8 @@ def tracking_errors(video, tracks, swap_px=3.0):
     ----------
     video : SyntheticVideo
     tracks : data_tools.video.Tracks
-        Tracks that start in frame 0; ``tracks.raw`` (``keep_raw=True``) enables the count
-        of identity swaps caught.
+        Tracks (a late one is compared from its first frame on); ``tracks.raw``
+        (``keep_raw=True``) enables the count of identity swaps caught.
     swap_px : float
         A track more than this many pixels from its true position has swapped identity
         (drifted onto another surface point).
