@@ -343,3 +343,22 @@ def test_late_tracks_get_ground_truth_in_their_first_frame(video):
     assert np.median(err) < 1e-6
     seq = video.sequence(tracks)
     assert seq.W.shape[1] == ok.sum() and np.isfinite(seq.shapes).all()
+
+
+def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
+    """Every track seen in 2+ frames, late ones included: the recording colours the
+    undetermined tracks, leaves them out of the 3D view and names their count."""
+    from nrsfm.views.video import UNDETERMINED_COLOR, _track_colors, save_video_recording
+
+    tr = track_sparse(video.frames, detect_every=3)
+    assert (tr.start > 0).any()
+    vr = reconstruct_tracks(tr.W, 1, method="pseudo_inverse")
+    assert vr.missing_data and vr.result.fill_gain is not None
+    und = vr.result.undetermined
+    assert 0 < und.sum() < und.size                           # short late tracks
+    info = save_video_recording(tmp_path / "late.rrd", video.frames, tr, vr.result, vr.used,
+                                max_points_3d=None, max_points_2d=None)
+    assert info["points_3d"] == int((~und).sum())
+    colors = _track_colors(vr.used, np.isin(np.arange(tr.n_points),
+                                            np.flatnonzero(vr.used)[und]))
+    assert (colors[np.flatnonzero(vr.used)[und]] == UNDETERMINED_COLOR).all()
