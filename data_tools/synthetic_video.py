@@ -169,13 +169,16 @@ class SyntheticVideo:
         cam = self.rotations @ X_world
         return self.pixel_scale * cam[:, :2] + self.offsets[:, :, None]
 
-    def locate(self, points0):
-        """Mesh location of pixel positions in frame 0.
+    def locate(self, points, frame=0):
+        """Mesh location of pixel positions in a frame.
 
         Parameters
         ----------
-        points0 : (P, 2) array_like
-            (x, y) pixel positions in frame 0.
+        points : (P, 2) array_like
+            (x, y) pixel positions in ``frame``.
+        frame : int
+            The frame the positions are in (frame 0's id buffer is stored; another frame's
+            is rasterised again).
 
         Returns
         -------
@@ -184,17 +187,23 @@ class SyntheticVideo:
         bary : (P, 3) ndarray
             Barycentric coordinates in that triangle (NaN where ``triangle == -1``).
         """
-        p = np.asarray(points0, float).reshape(-1, 2)
-        H, W = self.id0.shape
-        xi = np.clip(np.rint(p[:, 0]).astype(int), 0, W - 1)
-        yi = np.clip(np.rint(p[:, 1]).astype(int), 0, H - 1)
+        p = np.asarray(points, float).reshape(-1, 2)
+        if frame == 0:
+            ids, affine = self.id0, self.affine0
+        else:
+            cam = self.rotations[frame] @ self.vertices[frame]
+            pix = (self.pixel_scale * cam[:2] + self.offsets[frame][:, None]).T
+            ids, affine = _id_buffer(self.triangles, pix, cam[2], self.id0.shape)
+        H, W = ids.shape
+        xi = np.clip(np.rint(np.nan_to_num(p[:, 0])).astype(int), 0, W - 1)
+        yi = np.clip(np.rint(np.nan_to_num(p[:, 1])).astype(int), 0, H - 1)
         inside = np.isfinite(p).all(1) & (p[:, 0] > -0.5) & (p[:, 0] < W - 0.5) \
             & (p[:, 1] > -0.5) & (p[:, 1] < H - 0.5)
-        tri = np.where(inside, self.id0[yi, xi] - 1, -1)
+        tri = np.where(inside, ids[yi, xi] - 1, -1)
         hom = np.concatenate([p, np.ones((len(p), 1))], axis=1)
         bary = np.full((len(p), 3), np.nan)
         ok = tri >= 0
-        bary[ok] = np.einsum("pij,pj->pi", self.affine0[tri[ok]], hom[ok])
+        bary[ok] = np.einsum("pij,pj->pi", affine[tri[ok]], hom[ok])
         return tri, bary
 
     def world_points(self, triangle, bary):
@@ -207,12 +216,13 @@ class SyntheticVideo:
         return X
 
     def ground_truth(self, tracks):
-        """Ground truth for tracks that start in frame 0.
+        """Ground truth of tracks, each located on the mesh in its first observed frame
+        (frame 0, or later for a track that starts late; NaN before).
 
         Parameters
         ----------
         tracks : (F, 2, P) ndarray or data_tools.video.Tracks
-            Pixel tracks (NaN where lost); ``tracks[0]`` must be finite.
+            Pixel tracks (NaN where not observed).
 
         Returns
         -------
@@ -222,7 +232,13 @@ class SyntheticVideo:
             (P,) bool: the track started on the surface (not the background).
         """
         tracks = np.asarray(getattr(tracks, "tracks", tracks), float)
-        tri, bary = self.locate(tracks[0].T)
+        seen = np.isfinite(tracks).all(axis=1)                      # (F, P)
+        first = np.where(seen.any(axis=0), seen.argmax(axis=0), 0)
+        tri = np.full(tracks.shape[2], -1)
+        bary = np.full((tracks.shape[2], 3), np.nan)
+        for f in np.unique(first):
+            cols = np.flatnonzero(first == f)
+            tri[cols], bary[cols] = self.locate(tracks[f][:, cols].T, frame=int(f))
         world = self.world_points(tri, bary)
         return dict(world=world, camera=self.rotations @ world, pixels=self.project(world),
                     valid=tri >= 0)
@@ -249,8 +265,9 @@ class SyntheticVideo:
                         extra=dict(valid=ok))
 
 
-def _render(texture, uv_pix, tris, pix, depth, size, background):
-    """One frame: id buffer, per-triangle affine maps, textured image."""
+def _id_buffer(tris, pix, depth, size):
+    """Triangle index + 1 at every pixel (H, W) and the per-triangle maps (T, 3, 3) from
+    homogeneous pixels to barycentric coordinates, of one frame."""
     import cv2
 
     H, W = size
@@ -266,6 +283,15 @@ def _render(texture, uv_pix, tris, pix, depth, size, background):
     safe = np.abs(det) > 1e-9
     affine = np.zeros_like(Mt)
     affine[safe] = np.linalg.inv(Mt[safe])
+    return ids, affine
+
+
+def _render(texture, uv_pix, tris, pix, depth, size, background):
+    """One frame: id buffer, per-triangle affine maps, textured image."""
+    import cv2
+
+    H, W = size
+    ids, affine = _id_buffer(tris, pix, depth, size)
     yy, xx = np.nonzero(ids)
     tri = ids[yy, xx] - 1
     hom = np.stack([xx, yy, np.ones_like(xx)], axis=1).astype(float)
@@ -361,8 +387,8 @@ def tracking_errors(video, tracks, swap_px=3.0):
     ----------
     video : SyntheticVideo
     tracks : data_tools.video.Tracks
-        Tracks that start in frame 0; ``tracks.raw`` (``keep_raw=True``) enables the count
-        of identity swaps caught.
+        Tracks (a late one is compared from its first frame on); ``tracks.raw``
+        (``keep_raw=True``) enables the count of identity swaps caught.
     swap_px : float
         A track more than this many pixels from its true position has swapped identity
         (drifted onto another surface point).

@@ -69,8 +69,12 @@ class Reconstruction:
     W_completed : (2F, P) ndarray or None
         Where the input had missing observations: the completed W (input units, before
         centring) that the pipeline ran on.
-    completion : CompletionResult or None
-        The completion's result (:mod:`nrsfm.stages.completion`).
+    completion : CompletionResult or FastCompletion or None
+        The completion's result (:func:`nrsfm.stages.completion.complete`).
+    fill_gain : (P,) ndarray or None
+        Where the input had missing observations: how much each track's filled entries
+        amplify measurement noise under the rank-3K motion ``M_hat``
+        (:func:`nrsfm.stages.completion_fast.fill_gain`); see :attr:`undetermined`.
     """
 
     rotations: np.ndarray
@@ -90,6 +94,18 @@ class Reconstruction:
     observed: np.ndarray = None
     W_completed: np.ndarray = None
     completion: object = None
+    fill_gain: np.ndarray = None
+
+    @property
+    def undetermined(self):
+        """(P,) bool: tracks seen in too few frames for the data to pin down their 3D
+        (fill gain above :data:`nrsfm.stages.completion_fast.MAX_GAIN`); all False for
+        complete input. Their shapes are filled, but are an extrapolation."""
+        if self.fill_gain is None:
+            return np.zeros(self.n_points, bool)
+        from .stages.completion_fast import MAX_GAIN
+
+        return self.fill_gain > MAX_GAIN
 
     @property
     def n_frames(self):
@@ -164,6 +180,13 @@ class Reconstruction:
         lines = [f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, "
                  f"scale={self.scale:.4g}",
                  f"  reprojection RMS {self.reprojection_error():.3g} (input units)"]
+        if self.observed is not None:
+            c = self.completion
+            lines.append(f"  missing data: {100 * (1 - self.observed.mean()):.1f} % of the "
+                         f"observations filled ({type(c).__name__}, lags {c.lags}, "
+                         f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
+                         f"tracks undetermined (seen in too few frames: their 3D is an "
+                         f"extrapolation)")
         t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
         lines.append(f"  time: {t}")
         return "\n".join(lines)
@@ -238,8 +261,10 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         What to do with missing observations: NaN in W or tracks (a point counts as missing
         in a frame when either coordinate is NaN), or the mask of a
         ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
-        (:func:`nrsfm.stages.completion.complete_measurements`) and run the pipeline on
-        it; the result keeps ``observed`` and ``W_completed``. ``error``: refuse.
+        (:func:`nrsfm.stages.completion.complete`: a rank-3K factorisation of the observed
+        entries; soft-impute with ``settings.measurement.completion = "soft_impute"``)
+        and run the pipeline on it; the result keeps ``observed``, ``W_completed`` and
+        the tracks the data leave ``undetermined``. ``error``: refuse.
     settings : nrsfm.settings.Settings, optional
         Every setting, typed (replaces ``method``, ``shape_solver``, ``missing`` and the
         option dicts, which are then not allowed).
@@ -276,7 +301,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     say = _progress_printer(progress)
     timings = {}
     with blas_threads(blas_thread_limit) if blas_thread_limit else nullcontext():
-        completion, W = _complete(W, timings)
+        completion, W = _complete(W, K, settings.measurement, timings)
         with _timed(timings, "factorize"):
             meas = measure(W, K)
         fact = meas.factorization
@@ -311,7 +336,9 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                           params=params, timings=timings, diagnostics=diagnostics,
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
-                          completion=completion)
+                          completion=completion,
+                          fill_gain=None if completion is None else
+                          _fill_gain(fact.M_hat, completion.observed))
 
 
 def _check_inputs(W, K, rotations, missing):
@@ -330,16 +357,23 @@ def _check_inputs(W, K, rotations, missing):
     return W, K, rotations
 
 
-def _complete(W, timings):
-    """(CompletionResult or None, W with its missing entries filled)."""
+def _complete(W, K, settings, timings):
+    """(completion result or None, W with its missing entries filled)."""
     if not np.isnan(W).any():
         return None, W
-    from .stages.completion import complete_measurements
+    from .stages.completion import complete
 
     with _timed(timings, "completion"):
-        completion = complete_measurements(W)
+        completion = complete(W, K, settings)
     if not completion.converged:
         warnings.warn(f"the completion of W stopped at its iteration cap "
                       f"({completion.n_iter}) before converging: the filled "
                       f"entries may be inaccurate", RuntimeWarning, stacklevel=3)
     return completion, completion.W
+
+
+def _fill_gain(M_hat, observed):
+    """(P,) fill gain of every track under the rank-3K motion of the completed W."""
+    from .stages.completion_fast import fill_gain
+
+    return fill_gain(M_hat, observed)

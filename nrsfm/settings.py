@@ -4,7 +4,8 @@ One frozen dataclass per stage, each validated when it is built (a bad value rai
 ValueError naming it), so that a parameter can be followed from ``reconstruct`` into the
 solver that uses it:
 
-* :class:`MeasurementSettings`: what to do with missing observations.
+* :class:`MeasurementSettings`: what to do with missing observations, and how to complete
+  them.
 * :class:`RotationSettings`: the production rotation stage (``organic`` and ``bmm``);
   :class:`RotationAblationSettings` adds the research variants run by
   :mod:`nrsfm.ablation`.
@@ -60,12 +61,31 @@ class MeasurementSettings:
     missing : {"complete", "error"}
         Missing observations (NaN or masked): fill W by low-rank completion
         (:mod:`nrsfm.stages.completion`), or refuse.
+    completion : {"factorisation", "soft_impute"}
+        How W is completed: ``factorisation`` (default), a rank-3K factorisation of the
+        observed entries (:func:`nrsfm.stages.completion_fast.complete_low_rank`), or
+        ``soft_impute``, the nuclear-norm completion with a full SVD per iteration
+        (:func:`nrsfm.stages.completion.complete_measurements`; faster on small W with
+        uniformly scattered gaps, see ``docs/missing_data_scale.md``).
+    lags : "auto" or tuple of int
+        Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
+        of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
     """
 
     missing: str = "complete"
+    completion: str = "factorisation"
+    lags: object = "auto"
 
     def __post_init__(self):
         _one_of("missing", self.missing, ("complete", "error"))
+        _one_of("completion", self.completion, ("factorisation", "soft_impute"))
+        if self.lags != "auto":
+            lags = tuple(self.lags) if isinstance(self.lags, (tuple, list)) else None
+            if (lags is None or not all(isinstance(d, int) for d in lags) or 0 not in lags
+                    or len(set(lags)) != len(lags)):
+                raise ValueError(f"lags must be 'auto' or distinct integers including 0; "
+                                 f"got {self.lags!r}")
+            object.__setattr__(self, "lags", lags)
 
 
 # ----------------------------------------------------------------------------- rotations

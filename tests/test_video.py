@@ -277,3 +277,88 @@ def test_wide_factorisation_matches_the_svd():
     # s_1, not to themselves
     np.testing.assert_allclose(f.singular_values, s, atol=1e-9 * s[0])
     assert f.singular_values.shape == s.shape
+
+
+# --------------------------------------------------------------------------- late tracks
+
+def _revealed_frames(n=11, reveal_at=5):
+    """The shifted texture of :func:`_shifted_frames`, flat grey right of x = 150 before
+    frame ``reveal_at`` (a region that becomes visible)."""
+    frames = _shifted_frames(n)
+    for f in range(reveal_at):
+        frames[f] = frames[f].copy()
+        frames[f][:, 150:] = 128
+    return frames
+
+
+@pytest.mark.parametrize("kind", ["sparse", "dense"])
+def test_trackers_start_tracks_in_newly_textured_space(kind):
+    frames = _revealed_frames()
+    run = ((lambda **kw: track_sparse(frames, min_distance=6, **kw)) if kind == "sparse"
+           else (lambda **kw: track_dense(frames, step=8, **kw)))
+    plain = run()
+    assert plain.started_at is None and (plain.start == 0).all()
+    tr = run(detect_every=3)
+    start = tr.start
+    late = start > 0
+    assert set(np.unique(start[late])) <= {3, 6, 9}            # every 3rd frame
+    F = len(frames)
+    for f in range(F):                                         # NaN before the first frame
+        assert np.isnan(tr.tracks[f, :, start > f]).all()
+    first = tr.tracks[start[late], :, np.flatnonzero(late)]    # (n, 2) at detection
+    assert np.isfinite(first).all()
+    revealed = first[:, 0] > 150 + 1.5 * 9                     # right of the curtain
+    assert revealed.sum() >= 10 and (start[late][revealed] >= 6).all()
+    assert not (tr.tracks[0, 0] > 150 + 1.5 * 9).any()         # nothing there in frame 0
+    gap = 6 if kind == "sparse" else 8                         # only where no track is
+    for f in np.unique(start[late]):
+        new, old = tr.tracks[f][:, start == f], tr.tracks[f][:, start < f]
+        old = old[:, np.isfinite(old).all(axis=0)]
+        d = np.linalg.norm(new[:, :, None] - old[:, None, :], axis=0).min(axis=1)
+        assert d.min() > gap - 1
+    # the late tracks follow the texture's motion (1.5, 0.5) px per frame
+    last = tr.tracks[F - 1][:, late]
+    ok = np.isfinite(last).all(axis=0)
+    assert ok.mean() > 0.8
+    moved = (last[:, ok] - first[ok].T) / (F - 1 - start[late][ok])
+    np.testing.assert_allclose(np.median(moved, axis=1), [1.5, 0.5], atol=0.1)
+    assert not tr.complete[late].any() and tr.complete.sum() == plain.complete.sum()
+    assert "starting after frame 0" in tr.summary()
+
+
+def test_late_tracks_get_ground_truth_in_their_first_frame(video):
+    """A track that starts in frame f > 0 is located on the mesh in frame f: its true
+    projection matches where it was started, in that frame and the next ones."""
+    V = video.vertices.shape[2]
+    pix = video.project(video.vertices)                          # (F, 2, V) vertices
+    start = np.arange(V) % 4 * 3                                 # frames 0, 3, 6, 9
+    tracks = pix.copy()
+    for p in range(V):
+        tracks[:start[p], :, p] = np.nan                         # NaN before the start
+    gt = video.ground_truth(tracks)
+    ok = gt["valid"]
+    assert ok[start > 0].mean() > 0.5 and ok[start == 0].mean() > 0.5
+    late = ok & (start > 0)
+    err = np.linalg.norm(gt["pixels"] - pix, axis=1)[:, late]   # (F, n)
+    assert np.median(err) < 1e-6
+    seq = video.sequence(tracks)
+    assert seq.W.shape[1] == ok.sum() and np.isfinite(seq.shapes).all()
+
+
+def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
+    """Every track seen in 2+ frames, late ones included: the recording colours the
+    undetermined tracks, leaves them out of the 3D view and names their count."""
+    from nrsfm.views.video import UNDETERMINED_COLOR, _track_colors, save_video_recording
+
+    tr = track_sparse(video.frames, detect_every=3)
+    assert (tr.start > 0).any()
+    vr = reconstruct_tracks(tr.W, 1, method="pseudo_inverse")
+    assert vr.missing_data and vr.result.fill_gain is not None
+    und = vr.result.undetermined
+    assert 0 < und.sum() < und.size                           # short late tracks
+    info = save_video_recording(tmp_path / "late.rrd", video.frames, tr, vr.result, vr.used,
+                                max_points_3d=None, max_points_2d=None)
+    assert info["points_3d"] == int((~und).sum())
+    colors = _track_colors(vr.used, np.isin(np.arange(tr.n_points),
+                                            np.flatnonzero(vr.used)[und]))
+    assert (colors[np.flatnonzero(vr.used)[und]] == UNDETERMINED_COLOR).all()

@@ -25,10 +25,11 @@ def _track(args):
     t0 = time.perf_counter()
     if args.dense:
         tracks = track_dense(frames, step=args.step, fb_threshold=args.fb_threshold,
-                             max_points=args.max_points)
+                             max_points=args.max_points, detect_every=args.detect_every)
     else:
         tracks = track_sparse(frames, max_points=args.max_points or 2000,
-                              fb_threshold=args.fb_threshold)
+                              fb_threshold=args.fb_threshold,
+                              detect_every=args.detect_every)
     say(args)(f"tracked in {time.perf_counter() - t0:.1f} s")
     print(tracks.summary())
     return frames, tracks
@@ -68,13 +69,14 @@ def cmd_video(args):
     vr = reconstruct_tracks(tracks.W, K, method=args.method, seed=args.seed,
                             missing="complete" if args.complete_tracks else "auto",
                             progress=not args.quiet)
-    how = ("all tracks (missing data)" if vr.missing_data else
-           f"the {vr.n_complete} complete tracks of {vr.n_tracks}")
+    how = (f"the {int(vr.used.sum())} tracks seen in 2+ frames (missing data)"
+           if vr.missing_data else f"the {vr.n_complete} complete tracks of {vr.n_tracks}")
     print(f"reconstructed {how} with K={K}")
     print_report(vr.result)
     if out is not None:
         save_npz(out, W=tracks.W, used=vr.used, rotations=vr.result.rotations,
-                 shapes=vr.result.shapes, colors=tracks.colors, lost_at=tracks.lost_at, K=K,
+                 shapes=vr.result.shapes, colors=tracks.colors, lost_at=tracks.lost_at,
+                 started_at=tracks.start, undetermined=vr.result.undetermined, K=K,
                  method=np.array(vr.result.method))
         print(f"wrote {out}")
     if rrd is not None:
@@ -95,6 +97,10 @@ def _add_tracking(p):
     p.add_argument("--fb-threshold", type=float, default=1.0,
                    help="forward-backward error (pixels) beyond which a track is lost "
                         "(default: 1.0)")
+    p.add_argument("--detect-every", type=seed, default=5, metavar="N",
+                   help="start new tracks in textured areas without tracks every N frames "
+                        "(NaN before their first frame; 0: only the first frame's; "
+                        "default: 5)")
     p.add_argument("--max-frames", type=positive_int, default=None,
                    help="read at most this many frames")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
@@ -120,8 +126,8 @@ def add_video_commands(subparsers):
     p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
     p.add_argument("--complete-tracks", action="store_true",
                    help="reconstruct only the tracks observed in every frame (default: every "
-                        "track seen in 2+ frames, lost entries completed as missing data; "
-                        "slower on dense tracks)")
+                        "track seen in 2+ frames, lost and late entries completed as "
+                        "missing data)")
     add_rrd_option(p, "VIDEO_NAME.rrd")
     p.add_argument("-o", "--output", help="write tracks, rotations and shapes (.npz)")
     p.set_defaults(func=cmd_video)

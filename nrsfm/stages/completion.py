@@ -26,7 +26,11 @@ computed from W alone and the completion is scale-equivariant (W times c gives t
 completion times c).
 
 The paper completes W with Cabral et al.'s method and then runs its algorithm on the
-completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``).
+completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``), by
+default with the rank-3K factorisation of the observed entries of
+:mod:`nrsfm.stages.completion_fast`, which scales to video (no SVD per iteration) and
+was more accurate on every case of ``docs/missing_data_scale.md``; soft-impute stays as
+``MeasurementSettings(completion="soft_impute")``. :func:`complete` chooses between them.
 """
 
 from __future__ import annotations
@@ -35,12 +39,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CompletionResult", "complete_measurements", "observed_mask"]
+__all__ = ["CompletionResult", "choose_lags", "complete", "complete_measurements",
+           "observed_mask"]
 
 #: Final threshold as a fraction of sigma_1 (see the module docstring).
 TAU_FRACTION = 1e-3
 #: Default temporal lags (frames) of the lagged matrix H(W).
 LAGS = (-1, 0, 1)
+#: :func:`choose_lags`: lags when a frame observes fewer than this many points per unknown
+#: of its rows (r + 1).
+LAG_RATIO = 2
 
 
 @dataclass
@@ -132,6 +140,75 @@ def _lag_index(F, lags):
     return np.clip(np.arange(F)[None, :] + np.asarray(lags)[:, None], 0, F - 1)
 
 
+def _lag(A, idx):
+    """The lagged matrix ``[S_d A]_d`` (n_rows, n_lags P) of A (n_rows, P) whose rows come
+    in equal groups per frame (W: 2 rows per frame; the mask (F, P): 1)."""
+    F, P = idx.shape[1], A.shape[1]
+    Af = A.reshape(F, -1, P)
+    return np.concatenate([Af[i].reshape(-1, P) for i in idx], axis=1)
+
+
+def _average_copies(L, idx):
+    """(2F, P): each entry of W as the mean of its copies in the lagged L (2F, n_lags P)."""
+    n, F = idx.shape
+    P = L.shape[1] // n
+    acc, counts = np.zeros((F, 2, P)), np.zeros(F)
+    for j, i in enumerate(idx):
+        np.add.at(acc, i, L[:, j * P:(j + 1) * P].reshape(F, 2, P))
+        np.add.at(counts, i, 1.0)
+    return (acc / counts[:, None, None]).reshape(2 * F, P)
+
+
+def choose_lags(observed, rank):
+    """Temporal lags for completing W at rank r, from its (F, P) observation mask alone.
+
+    Each frame's two rows and offset (r + 1 unknowns per row) are fitted to the points the
+    frame observes. When the frame observing the fewest points has fewer than
+    ``LAG_RATIO * (r + 1)`` of them, a frame's own observations barely determine its rows
+    (MoCap: 41 markers, r = 3K = 30-36, about 29 observed at 30 % missing) and the lags
+    ``(-1, 0, 1)`` add its neighbours' observations; otherwise (dense tracks: thousands of
+    points per frame at r = 3-6) ``(0,)``. Measurements: ``docs/missing_data_scale.md``.
+
+    Parameters
+    ----------
+    observed : (F, P) bool ndarray
+    rank : int
+
+    Returns
+    -------
+    tuple of int
+    """
+    fewest = int(np.asarray(observed, bool).sum(axis=1).min())
+    return (-1, 0, 1) if fewest < LAG_RATIO * (int(rank) + 1) else (0,)
+
+
+def complete(W, K, settings):
+    """Fill the missing entries of W for K shape bases, as ``settings`` say.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        NaN where missing.
+    K : int
+        Rank of the completion: 3K (Eq. 1).
+    settings : nrsfm.settings.MeasurementSettings
+        ``completion`` (``factorisation`` or ``soft_impute``) and ``lags``.
+
+    Returns
+    -------
+    CompletionResult or nrsfm.stages.completion_fast.FastCompletion
+        Both with ``W`` (completed), ``observed``, ``n_iter``, ``converged`` and ``lags``.
+    """
+    observed = observed_mask(W)
+    lags = (choose_lags(observed, 3 * K) if settings.lags == "auto"
+            else tuple(settings.lags))
+    if settings.completion == "soft_impute":
+        return complete_measurements(W, observed, lags=lags)
+    from .completion_fast import complete_low_rank
+
+    return complete_low_rank(W, 3 * K, observed, lags=lags)
+
+
 def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTION,
                           lags=LAGS, n_stages=8, tol=1e-6, max_iter=500):
     """Fill the missing entries of W by nuclear-norm completion (soft-impute).
@@ -195,20 +272,7 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
     t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
     Z = np.where(obs2, W, t)                                    # mean fill
     idx = _lag_index(F, lags)                                   # (n_lags, F)
-    counts = np.zeros(F)
-    np.add.at(counts, idx.ravel(), 1.0)
-
-    def lagged(Z):                                              # H(Z), (2F, n_lags P)
-        Zf = Z.reshape(F, 2, P)
-        return np.concatenate([Zf[i].reshape(2 * F, P) for i in idx], axis=1)
-
-    def average_copies(L):                                      # H^-1: mean of the copies
-        acc = np.zeros((F, 2, P))
-        for j, i in enumerate(idx):
-            np.add.at(acc, i, L[:, j * P:(j + 1) * P].reshape(F, 2, P))
-        return (acc / counts[:, None, None]).reshape(2 * F, P)
-
-    H = lagged(Z)
+    H = _lag(Z, idx)
     sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
     if not sigma1 > 0:
         raise ValueError("the observed entries of W have no spread: nothing to complete")
@@ -224,12 +288,12 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
         converged = False
         while n_iter < max_iter:
             n_iter += 1
-            H = lagged(Z)
+            H = _lag(Z, idx)
             t = H.mean(axis=1, keepdims=True)                   # free row offsets
             U, s, Vt = np.linalg.svd(H - t, full_matrices=False)
             s = np.maximum(s - tau_s, 0.0)                      # nuclear-norm prox
             rank = int(np.count_nonzero(s))
-            L = average_copies((U[:, :rank] * s[:rank]) @ Vt[:rank] + t)
+            L = _average_copies((U[:, :rank] * s[:rank]) @ Vt[:rank] + t, idx)
             change = (np.linalg.norm(L[missing] - Z[missing])
                       / max(np.linalg.norm(Z), 1e-300))
             Z[missing] = L[missing]

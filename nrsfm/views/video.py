@@ -4,11 +4,15 @@ Entity paths (timeline ``frame``):
 
 * ``/video/frame``: the frame, JPEG-encoded (downscaled to at most ``max_width`` pixels).
 * ``/video/tracks``: Points2D, tracks observed in this frame (a decimated subset for dense
-  input), green where the reconstruction used the track, yellow where it did not.
+  input; a track that starts late appears from its first frame), green where the
+  reconstruction used the track, orange where it used it but the data leave its 3D
+  undetermined (``Reconstruction.undetermined``: seen in too few frames), yellow where it
+  did not use it.
 * ``/video/lost``: Points2D, red dots (larger) at the last position of every (shown) track lost
   at or before this frame.
-* ``/world/estimate``: Points3D, the reconstructed shape (decimated), coloured from the
-  video; similarity-aligned per frame onto the ground truth when one is given (as ``e3d``).
+* ``/world/estimate``: Points3D, the reconstructed shape of the tracks the data determine
+  (decimated; the undetermined ones are extrapolations), coloured from the video;
+  similarity-aligned per frame onto the ground truth when one is given (as ``e3d``).
 * ``/world/ground_truth``: Points3D, the true shape (same points), blue.
 * ``/errors/e3d``: per-frame error when a ground truth is given; ``/tracks/alive``: number
   of tracks still observed.
@@ -33,6 +37,7 @@ __all__ = ["VIDEO_ENTITY_PATHS", "decimate", "aligned_subset", "save_video_recor
 VIDEO_ENTITY_PATHS = ("/video", "/world", "/errors", "/tracks", "/run")
 USED_COLOR = (60, 230, 60, 255)
 UNUSED_COLOR = (250, 220, 40, 255)
+UNDETERMINED_COLOR = (255, 140, 0, 255)
 LOST_COLOR = (255, 40, 40, 255)
 GT_COLOR = (70, 130, 255, 160)
 
@@ -94,21 +99,36 @@ def _log_frames(rec, rr, frames, zoom, jpeg_quality):
                                                 media_type="image/jpeg"))
 
 
-def _log_tracks(rec, rr, tracks, used, zoom, max_points):
-    """Tracks over the frames (decimated), in the displayed image's pixels; returns how
-    many were drawn."""
+def _track_colors(used, undetermined):
+    """(P, 4) uint8 colour per track: used, used but undetermined, or not used."""
+    colors = np.where(used[:, None], np.array(USED_COLOR), np.array(UNUSED_COLOR))
+    colors[undetermined] = UNDETERMINED_COLOR
+    return colors.astype(np.uint8)
+
+
+def _undetermined(result, used):
+    """(P,) bool over all tracks: used tracks the reconstruction reports undetermined."""
+    out = np.zeros(len(used), bool)
+    if result is not None:
+        out[np.flatnonzero(used)] = result.undetermined
+    return out
+
+
+def _log_tracks(rec, rr, tracks, colors, zoom, max_points):
+    """Tracks over the frames (decimated), in the displayed image's pixels, coloured by
+    ``colors`` (P, 4); returns how many were drawn."""
     F, P = tracks.n_frames, tracks.n_points
     sel = decimate(P, max_points)
     T = tracks.tracks[:, :, sel].transpose(0, 2, 1) * zoom       # (F, n, 2)
     alive = np.isfinite(T).all(axis=2)
     lost_at = tracks.lost_at[sel]
     last = T[np.clip(lost_at - 1, 0, F - 1), np.arange(len(sel))]   # (n, 2)
-    colors = np.where(used[sel][:, None], np.array(USED_COLOR), np.array(UNUSED_COLOR))
+    colors = colors[sel]
     r2 = max(1.0, 1.5 * zoom)
     for f in range(F):
         rec.set_time("frame", sequence=f)
         a = alive[f]
-        rec.log("/video/tracks", rr.Points2D(T[f, a], colors=colors[a].astype(np.uint8),
+        rec.log("/video/tracks", rr.Points2D(T[f, a], colors=colors[a],
                                              radii=r2, draw_order=10))
         gone = lost_at <= f
         rec.log("/video/lost", rr.Points2D(last[gone], colors=[LOST_COLOR],
@@ -119,8 +139,12 @@ def _log_tracks(rec, rr, tracks, used, zoom, max_points):
 
 
 def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
-    """The 3D estimate (and ground truth); returns (points drawn, errors)."""
-    X = np.asarray(result.shapes)
+    """The 3D estimate of the tracks the data determine (and their ground truth); returns
+    (points drawn, errors)."""
+    det = ~result.undetermined
+    X = np.asarray(result.shapes)[:, :, det]
+    if shapes_gt is not None:
+        shapes_gt = np.asarray(shapes_gt)[:, :, det]
     fr = np.arange(X.shape[0])
     sel3 = decimate(X.shape[2], max_points)
     errs = {}
@@ -135,7 +159,7 @@ def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
         X_disp = X[:, :, sel3] - X.mean(axis=2, keepdims=True)
         X_disp = X_disp.transpose(0, 2, 1).astype(np.float32)
     rl.send_points(rec, rr, "/world/estimate", X_disp, fr)
-    col = tracks.colors[np.flatnonzero(used)][sel3]
+    col = tracks.colors[np.flatnonzero(used)[det]][sel3]
     rec.log("/world/estimate", rr.Points3D.from_fields(colors=col, radii=[-2.0]),
             static=True)
     return len(sel3), errs
@@ -149,7 +173,10 @@ def _video_report(tracks, result, frames, zoom, n2, n3, errs, report):
              f"over the frames, {n3} points in 3D."]
     if result is not None:
         lines += ["", f"Reconstruction: method {result.method}, K = {result.K}, "
-                      f"{result.n_points} tracks used of {tracks.n_points}."]
+                      f"{result.n_points} tracks used of {tracks.n_points}, "
+                      f"{int(result.undetermined.sum())} of them undetermined (seen in "
+                      f"too few frames: their 3D is an extrapolation, drawn orange in 2D "
+                      f"and left out of the 3D view)."]
         lines += [f"- {k}: {v:.4g}" for k, v in errs.items()]
         lines += [f"- time {k}: {v:.2f} s" for k, v in result.timings.items()]
     if report:
@@ -204,7 +231,8 @@ def save_video_recording(path, frames, tracks, result=None, used=None, shapes_gt
     blueprint = make_video_blueprint(shapes_gt is not None and result is not None)
     with rl.rrd_stream(path, blueprint, application_id) as rec:
         _log_frames(rec, rr, frames, zoom, jpeg_quality)
-        n2 = _log_tracks(rec, rr, tracks, used, zoom, max_points_2d)
+        colors = _track_colors(used, _undetermined(result, used))
+        n2 = _log_tracks(rec, rr, tracks, colors, zoom, max_points_2d)
         n3, errs = 0, {}
         if result is not None:
             n3, errs = _log_world(rec, rr, result, tracks, used, shapes_gt, max_points_3d)

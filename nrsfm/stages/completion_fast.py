@@ -1,0 +1,423 @@
+"""Missing data at the scale of video: low-rank factorisation of the observed entries.
+
+A missing observation is a (frame, point) pair: both coordinates go together, so the mask
+is ``observed`` (F, P), expanded to W's (2F, P) rows. The model is the orthographic
+measurement model of the paper's Eq. 1 with the per-frame translation kept explicit,
+because with missing entries W cannot be centred before it is factorised:
+
+    W  ~  M B + t 1'          M (2F, r),  B (r, P),  t (2F,)
+
+and the factorisation is fitted to the observed entries only, with a small ridge on the
+factors (the bilinear form of a nuclear-norm penalty, Cabral et al., ICCV 2013):
+
+    minimise_{M, B, t}  1/2 ||P_Omega(W - M B - t 1')||_F^2 + lam/2 (||M||_F^2 + ||B||_F^2).
+
+It is solved by alternating exact least squares (the "ALS" baseline of Okatani, Yoshida &
+Deguchi, ICCV 2011, here with a ridge): with M fixed every column b_p is an r x r system
+over the frames that observe point p (inverted once per observation pattern); with B fixed
+every frame's two rows and offset are an (r + 1) x (r + 1) system over the points the
+frame observes. Both steps are batched Gram products, so one iteration costs O(|Omega| r^2):
+no SVD after the start, a rank-r truncated SVD (through the smaller Gram matrix) of the
+mean-filled W. Two measures keep the alternation from crawling (Buchanan & Fitzgibbon,
+CVPR 2005, on its slow convergence): the factors are re-balanced after every sweep
+(``M'M = BB'``, the split of MB with the least ridge), and the sweep is extrapolated by
+``k^(1/3)`` when that lowers the cost (Bro's line search for alternating least squares).
+
+Tracks seen in a few frames only: a track's fill is an extrapolation whose noise gain
+(:func:`fill_gain`) grows without bound as its observed frames shrink. M and t are fitted
+on the *determined* tracks (gain <= ``MAX_GAIN``, re-chosen up to ``MAX_ROUNDS`` times);
+every track's b_p is then solved with that M. ``FastCompletion.determined()`` says which
+tracks the data pin down; the others are filled, but their 3D cannot be trusted.
+
+``lags=(-1, 0, 1)`` factorises the time-lagged matrix ``[S_-1 W, W, S_+1 W]`` instead (a
+missing entry is the mean of its copies' fits), which ties a missing entry to its own
+trajectory when the rank r leaves a frame's observations too few (MoCap: P = 41 points,
+r = 3K = 36); the default ``(0,)`` is the plain factorisation (dense tracks). Measurements:
+``benchmarks/missing_study.py``.
+
+The ridge is ``lam = lam_fraction * sigma_1`` (sigma_1: largest singular value of the
+mean-filled, row-centred W): computed from W alone and scale-equivariant (W times c gives
+the completion times c); a per-row offset added to W is carried by t.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .completion import _average_copies, _lag, _lag_index, _refuse_sparse
+
+__all__ = ["FastCompletion", "complete_low_rank", "fill_gain", "observed_entries"]
+
+#: Ridge as a fraction of sigma_1 (see the module docstring).
+LAM_FRACTION = 1e-4
+#: A track is "determined" when its fill amplifies measurement noise at most this much
+#: (see :func:`fill_gain`).
+MAX_GAIN = 3.0
+#: Default temporal lags (frames).
+LAGS = (0,)
+#: Rounds of (choose the determined tracks, fit M on them).
+MAX_ROUNDS = 4
+#: Determined tracks per dimension of b_p needed to estimate the prior of the short tracks.
+PRIOR_SAMPLES = 10
+
+
+@dataclass
+class FastCompletion:
+    """Result of :func:`complete_low_rank`.
+
+    Attributes
+    ----------
+    W : (2F, P) ndarray
+        Completed matrix: observed entries unchanged, missing ones ``M B + t``.
+    observed : (F, P) bool ndarray
+        True where the point was observed in the frame.
+    M : (2F, r) ndarray
+        Motion factor (row pairs per frame).
+    B : (r, n_lags P) ndarray
+        Structure factor (one column per point and lag, lag-major).
+    t : (2F,) ndarray
+        Per-row offset (the per-frame translation, before centring).
+    rank, n_iter : int
+    lam : float
+        Ridge weight (input units).
+    converged : bool
+        The relative decrease of the objective fell below ``tol`` before ``max_iter``.
+    gain : (P,) ndarray
+        :func:`fill_gain` of each point's lag-0 column.
+    lags : tuple of int
+    history : dict of ndarrays
+        ``cost`` per iteration (objective / (1/2 ||P_Omega(W - mean)||^2)).
+    """
+
+    W: np.ndarray
+    observed: np.ndarray
+    M: np.ndarray
+    B: np.ndarray
+    t: np.ndarray
+    rank: int
+    lam: float
+    n_iter: int
+    converged: bool
+    gain: np.ndarray = None
+    lags: tuple = (0,)
+    history: dict = field(default_factory=dict)
+
+    @property
+    def missing_fraction(self):
+        return float(1.0 - self.observed.mean())
+
+    def determined(self, max_gain=MAX_GAIN):
+        """(P,) bool: tracks whose filled entries amplify noise at most ``max_gain`` x."""
+        return self.gain <= max_gain
+
+    def rms_residual(self):
+        """RMS of the lag-0 fit on the observed entries (input units)."""
+        o2 = np.repeat(self.observed, 2, axis=0)
+        P = self.observed.shape[1]
+        j = self.lags.index(0)
+        fit = self.M @ self.B[:, j * P:(j + 1) * P] + self.t[:, None]
+        return float(np.sqrt(np.mean((self.W - fit)[o2] ** 2)))
+
+
+def observed_entries(W, observed=None):
+    """Split W into zero-filled values and the (F, P) observation mask.
+
+    Parameters
+    ----------
+    W : (2F, P) or (F, 2, P) array_like
+        NaN marks a missing coordinate; a point is observed in a frame when both are finite.
+    observed : (F, P) bool array_like, optional
+        Further restricts the mask.
+
+    Returns
+    -------
+    Wz : (2F, P) ndarray
+        W with every unobserved entry set to 0.
+    observed : (F, P) bool ndarray
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, infinite entries, a frame observing fewer than 3 points or a point
+        observed in fewer than 2 frames (named).
+    """
+    A = np.array(W, dtype=float)
+    if A.ndim == 3 and A.shape[1] == 2:
+        A = A.reshape(2 * A.shape[0], A.shape[2])
+    if A.ndim != 2 or A.shape[0] % 2:
+        raise ValueError(f"W must have shape (2F, P) or (F, 2, P); got {np.shape(W)}")
+    if np.isinf(A).any():
+        raise ValueError(f"W contains {int(np.isinf(A).sum())} infinite entries "
+                         "(use NaN for a missing observation)")
+    F, P = A.shape[0] // 2, A.shape[1]
+    obs = np.isfinite(A).reshape(F, 2, P).all(axis=1)
+    if observed is not None:
+        observed = np.asarray(observed, dtype=bool)
+        if observed.shape != (F, P):
+            raise ValueError(f"observed must have shape (F, P) = ({F}, {P}); "
+                             f"got {observed.shape}")
+        obs &= observed
+    _refuse_sparse(obs.sum(axis=1), 3, "frame", "observes {n} points")
+    _refuse_sparse(obs.sum(axis=0), 2, "point", "is observed in {n} frames")
+    Wz = np.where(np.repeat(obs, 2, axis=0), A, 0.0)
+    return Wz, obs
+
+
+def _truncated_svd(A, r):
+    """Rank-r SVD ``U s Vt`` of A (m, n) through the Gram matrix of its smaller side."""
+    tall = A.shape[0] > A.shape[1]
+    G = A.T @ A if tall else A @ A.T
+    lam, V = np.linalg.eigh(G)
+    order = np.argsort(lam)[::-1][:r]
+    s = np.sqrt(np.clip(lam[order], 0.0, None))
+    V = V[:, order]
+    inv = np.where(s > s[0] * 1e-12, 1.0 / np.maximum(s, 1e-300), 0.0)
+    if tall:
+        return (A @ V) * inv, s, V.T
+    return V, s, (V * inv).T @ A
+
+
+def _mask_groups(obs):
+    """Points that share an observation pattern: ``(patterns (U, F) bool, index (P,))``."""
+    packed = np.packbits(obs.T, axis=1)
+    _, first, index = np.unique(packed, axis=0, return_index=True, return_inverse=True)
+    return obs[:, first].T, index.ravel()
+
+
+def _solve_structure(Wz, groups, M, t, lam, prior_mean=None):
+    """B-step: per point, ridge least squares over the frames that observe it.
+
+    ``groups`` from :func:`_mask_groups`: the r x r normal matrix depends on the point only
+    through its observation pattern, so it is inverted once per pattern. ``lam``: the
+    ridge weight, or an (r, r) prior precision with ``prior_mean`` (r,). Returns
+    ``(B, data)``: B (r, P) and ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the
+    normal equations.
+    """
+    patterns, index = groups
+    F2, r = M.shape
+    Mf = M.reshape(F2 // 2, 2, r)
+    G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
+    A = (patterns.astype(float) @ G).reshape(-1, r, r)
+    reg = lam * np.eye(r) if np.ndim(lam) == 0 else lam
+    inv = np.linalg.inv(A + reg)                              # (U, r, r)
+    o2 = np.repeat(patterns, 2, axis=1).astype(float)         # (U, 2F)
+    n_rows = o2[index].sum(axis=0)                            # (2F,) observed per row
+    rhs = M.T @ Wz - ((M * t[:, None]).T @ o2.T)[:, index]    # (r, P)
+    shift = 0.0 if prior_mean is None else (reg @ prior_mean)[:, None]
+    B = np.einsum("prs,sp->rp", inv[index], rhs + shift)
+    data = (np.sum(Wz * Wz) - 2.0 * t @ Wz.sum(axis=1) + (t * t) @ n_rows
+            - 2.0 * np.sum(B * rhs) + np.einsum("rp,prs,sp->", B, A[index], B))
+    return B, max(float(data), 0.0)
+
+
+def _solve_motion(Wz, obs, B, lam):
+    """M-step: per frame, ridge least squares for its two rows and offset.
+
+    Returns ``(M, t, data)``: ``data`` is ``||P_Omega(W - M B - t 1')||^2`` at the solution,
+    from the normal equations (no 2F x P residual is formed).
+    """
+    r, P = B.shape
+    F = obs.shape[0]
+    Bt = np.vstack([B, np.ones((1, P))])                      # (r + 1, P)
+    outer = np.einsum("ip,jp->pij", Bt, Bt).reshape(P, -1)
+    A = (obs.astype(float) @ outer).reshape(F, r + 1, r + 1)
+    reg = np.diag(np.r_[np.full(r, lam), 0.0])
+    rhs = (Wz @ Bt.T).reshape(F, 2, r + 1).transpose(0, 2, 1)  # (F, r + 1, 2)
+    X = np.linalg.solve(A + reg, rhs)                          # (F, r + 1, 2)
+    data = (np.sum(Wz * Wz) - 2.0 * np.sum(X * rhs)
+            + np.einsum("fia,fij,fja->", X, A, X))
+    X = X.transpose(0, 2, 1).reshape(2 * F, r + 1)
+    return X[:, :r], X[:, r], max(float(data), 0.0)
+
+
+def _balance(M, B):
+    """M' with ``M' B' = M B`` and ``M'^T M' = B' B'^T``: the split of the product with the
+    least ridge ``||M||^2 + ||B||^2`` (the alternation moves along this gauge slowly)."""
+    Qm, Rm = np.linalg.qr(M)
+    Qb, Rb = np.linalg.qr(B.T)
+    U, s, _ = np.linalg.svd(Rm @ Rb.T)
+    return Qm @ (U * np.sqrt(s))
+
+
+def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
+    """Alternate the M- and B-steps from M, t. Returns ``(M, t, costs, converged)``.
+
+    Each sweep is followed by an extrapolation of (M, t) along the sweep's step by
+    ``k^(1/3)`` (iteration k), kept when it lowers the cost (the line search Bro uses to
+    accelerate alternating least squares, 1998): plain alternation crawls along the
+    shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
+    """
+    groups = _mask_groups(obs)
+
+    def f(M, t):                                              # B-step and the cost
+        B, data = _solve_structure(Wz, groups, M, t, lam)
+        return B, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
+
+    B, c = f(M, t)
+    cost = []
+    for k in range(1, max(max_iter, 1) + 1):
+        M1, t1, _ = _solve_motion(Wz, obs, B, lam)
+        M1 = _balance(M1, B)
+        B1, c1 = f(M1, t1)
+        d = k ** (1.0 / 3.0)
+        if d > 1.0:
+            Me, te = M + d * (M1 - M), t + d * (t1 - t)
+            Be, ce = f(Me, te)
+            if ce < c1:
+                M1, t1, B1, c1 = Me, te, Be, ce
+        cost.append(c1)
+        done = c - c1 <= tol * c1
+        M, t, B, c = M1, t1, B1, c1
+        if done:
+            return M, t, cost, True
+    return M, t, cost, False
+
+
+def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRACTION,
+                      tol=1e-6,
+                      max_iter=300):
+    """Fill the missing entries of W by a rank-r factorisation of its observed entries.
+
+    Parameters
+    ----------
+    W : (2F, P) or (F, 2, P) array_like
+        Measurements; NaN marks a missing entry.
+    rank : int
+        Rank r of ``W - t 1'`` (3K for K shape bases, Eq. 1); ``1 <= r < min(2F, P)``.
+    observed : (F, P) bool array_like, optional
+        Restricts the observation mask further (default: the NaN pattern).
+    lags : sequence of int
+        Temporal lags (frames), containing 0: the factorisation is of the lagged matrix
+        ``[S_d W]`` (2F, n_lags P), as in :mod:`nrsfm.stages.completion`, and a missing entry is
+        the mean of its copies' fits; ``(0,)`` factorises W itself (frames in any order).
+    lam_fraction : float
+        Ridge weight as a fraction of sigma_1; positive.
+    tol : float
+        Stop when the objective's relative decrease in an iteration is below ``tol``.
+    max_iter : int
+        Iteration cap (``converged`` is False when reached).
+
+    Returns
+    -------
+    FastCompletion
+
+    Raises
+    ------
+    ValueError
+        Bad shapes or constants, rank out of range, too sparse observations.
+    """
+    Wz, obs = observed_entries(W, observed)
+    F, P = obs.shape
+    r = int(rank)
+    if not 1 <= r < min(2 * F, P):
+        raise ValueError(f"rank must be in [1, min(2F, P)) = [1, {min(2 * F, P)}); got {rank}")
+    if not (np.isfinite(lam_fraction) and lam_fraction > 0):
+        raise ValueError(f"lam_fraction must be positive; got {lam_fraction!r}")
+    if max_iter < 1:
+        raise ValueError(f"max_iter must be >= 1; got {max_iter}")
+    lags = tuple(int(d) for d in lags)
+    if 0 not in lags or len(set(lags)) != len(lags):
+        raise ValueError(f"lags must be distinct integers including 0; got {lags}")
+    idx = _lag_index(F, lags)
+    Hz, obs_h = _lag(Wz, idx), _lag(obs, idx)
+    M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
+    gain_h = fill_gain(M, obs_h)
+    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
+    fit = _average_copies(M @ B + t[:, None], idx)
+    o2 = np.repeat(obs, 2, axis=0)
+    j = lags.index(0)
+    gain = gain_h[j * P:(j + 1) * P]
+    return FastCompletion(W=np.where(o2, Wz, fit), observed=obs, M=M, B=B, t=t, rank=r,
+                          lam=lam, n_iter=len(cost), converged=converged, gain=gain,
+                          lags=lags, history=dict(cost=np.asarray(cost)))
+
+
+def _posterior_structure(Wz, obs, M, t, B, determined):
+    """Every b_p again, under the prior the determined tracks give (empirical Bayes).
+
+    ``b_p ~ N(mu, S)`` with mu, S the mean and covariance of the determined tracks' b_p,
+    and white noise of the variance of their residuals: ``b_p = (A_p + sigma^2 S^-1)^-1
+    (M_p'(w_p - t_p) + sigma^2 S^-1 mu)``. A long track is unchanged (its A_p dominates);
+    a short one falls back towards the typical point where its frames say nothing.
+    Returns B unchanged when fewer than ``PRIOR_SAMPLES * r`` tracks are determined: the
+    r x r covariance S needs many more samples than dimensions (MoCap: 41 markers at
+    r = 3K = 30-36, where the prior made drink's uniform case worse, 0.0089 -> 0.0107).
+    """
+    r = M.shape[1]
+    if determined.sum() < PRIOR_SAMPLES * r:
+        return B
+    o2 = np.repeat(obs[:, determined], 2, axis=0)
+    res = (Wz[:, determined] - M @ B[:, determined] - t[:, None])[o2]
+    sigma2 = float(np.mean(res ** 2))
+    mu = B[:, determined].mean(axis=1)
+    prec = sigma2 * np.linalg.pinv(np.cov(B[:, determined]), hermitian=True)
+    return _solve_structure(Wz, _mask_groups(obs), M, t, prec, prior_mean=mu)[0]
+
+
+def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
+    """Rank-r factorisation of the observed entries. ``(M, B, t, lam, costs, converged)``."""
+    P = obs.shape[1]
+    o2 = np.repeat(obs, 2, axis=0)
+    t = Wz.sum(axis=1) / o2.sum(axis=1)
+    Z = np.where(o2, Wz - t[:, None], 0.0)                    # mean fill, centred
+    U, s, Vt = _truncated_svd(Z, r)
+    if not s[0] > 0:
+        raise ValueError("the observed entries of W have no spread: nothing to complete")
+    lam = lam_fraction * float(s[0])
+    root = np.sqrt(s)
+    M, B = U * root, root[:, None] * Vt
+    scale = 0.5 * float(np.sum(Z * Z))
+    core = fill_gain(M, obs) <= MAX_GAIN
+    if core.sum() <= r:
+        core[:] = True
+    cost, converged = [], False
+    for _ in range(MAX_ROUNDS):
+        # fit M, t on the tracks the current M determines; an undetermined track only
+        # slows the alternation down (its b_p drifts along near-null directions)
+        M, t, c, converged = _alternate(Wz[:, core], obs[:, core], M, t, lam, tol,
+                                        max_iter - len(cost), scale)
+        cost += c
+        new = fill_gain(M, obs) <= MAX_GAIN
+        if new.sum() <= r or np.array_equal(new, core) or len(cost) >= max_iter:
+            break
+        core = new
+    B = _solve_structure(Wz, _mask_groups(obs), M, t, lam)[0]
+    return M, B, t, lam, cost, converged
+
+
+
+def fill_gain(M, observed):
+    """Noise gain of each track's filled entries (unitless, scale-free).
+
+    A point's structure column b_p is fitted to the frames that observe it, normal matrix
+    ``A_p = sum_{f observed} M_f' M_f``; the fill ``M_f b_p`` of a frame then has
+    covariance ``sigma^2 M_f A_p^{-1} M_f'`` for white measurement noise sigma. The gain
+    is ``max_f sqrt(lambda_max(M_f A_p^{-1} M_f'))`` over all frames: at most 1 inside the
+    observed frames of a complete track, large when a short track is extrapolated.
+
+    Parameters
+    ----------
+    M : (2F, r) ndarray
+    observed : (F, P) bool ndarray
+
+    Returns
+    -------
+    gain : (P,) ndarray
+    """
+    F2, r = M.shape
+    observed = np.asarray(observed, dtype=bool)
+    if observed.shape[0] * 2 != F2:
+        raise ValueError(f"observed must have shape (F, P) with 2F = {F2}; "
+                         f"got {observed.shape}")
+    patterns, index = _mask_groups(observed)
+    Mf = M.reshape(F2 // 2, 2, r)
+    G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
+    A = (patterns.astype(float) @ G).reshape(-1, r, r)
+    Ai = np.linalg.pinv(A, hermitian=True)                    # (U, r, r)
+    lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf)           # (U, F, 2, 2)
+    gain = np.sqrt(np.clip(np.linalg.eigvalsh(lev)[..., -1], 0.0, None).max(axis=1))
+    w = np.linalg.eigvalsh(A)
+    gain[w[:, 0] <= 1e-12 * w[:, -1]] = np.inf                # b_p not determined at all
+    return gain[index]
