@@ -116,7 +116,7 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
     info : dict (if ``return_info``)
     """
     M = np.asarray(M_hat, float)
-    F, n = M.shape[0] // 2, 3 * K
+    F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
     A = constraint_matrix(M)
     C = M.T @ M
     a = np.trace(C) / (2.0 * F * n)
@@ -152,6 +152,9 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
         rho = 1.0
         Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
         U = np.zeros((n, n))
+        if _cache is not None and "warm" in _cache:        # convex: the previous penalty's
+            Z, U, rho = (np.array(a, copy=True) for a in _cache["warm"])   # solution starts
+            rho = float(rho)
         status, it = "max_iter", 0
         Hc = None
         for it in range(1, max_iter + 1):
@@ -185,6 +188,8 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
                     U *= 2.0
                     Hc = None
         Q = 0.5 * (Z + Z.T)
+        if _cache is not None:
+            _cache["warm"] = (Z, U, rho)
         info = dict(solver="admm", status=status, iterations=it, rho=rho,
                     primal_residual=float(rn))
     else:
@@ -467,7 +472,7 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         ``stopped`` ("hits" or "max_starts"), ``miss_bound``, relaxation infos.
     """
     M = np.asarray(M_hat, float)
-    n = 3 * K
+    n = M.shape[1]                  # 3K, or the determined rank r
     rng = np.random.default_rng(seed)
     minima = []                     # [cost, G, name, count]
     history = []
