@@ -1,9 +1,10 @@
 """Rotations that serve the shape (issue 18): e_R and e3d (default shape solver) of the
-single best triplet (``bmm``), the averaging with the family combination (``organic``),
-the L1 average alone (``averaged``) and the averaged rotations projected back onto one
-triplet of the rank-3K factorisation (``refit``). ``rowsp``: how far the rotations are
-from the cameras of one triplet (:func:`nrsfm.stages.rotation_select.row_space_residual`,
-relative; 0 = consistent with W's row space).
+single best triplet (``bmm``), the paper's L1 average (``organic``), the average with the
+family combination (``family``, :mod:`nrsfm.ablation`) and the averaged rotations
+projected back onto one triplet of the rank-3K factorisation (``refit``); each with the
+rotation stage's own rotations (no shape selection). ``rowsp``: how far the rotations are
+from the cameras of one triplet (:func:`nrsfm.ablation.row_space_residual`, relative;
+0 = consistent with W's row space).
 
 Example::
 
@@ -25,16 +26,28 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 VARIANTS = {
     "bmm": ("bmm", {}),
     "organic": ("organic", {}),
-    "averaged": ("organic", dict(combine=None)),
-    "refit": ("organic", dict(combine=None, refit=True)),
+    "family": ("organic", dict(strategy="family")),
+    "refit": ("organic", dict(refit=True)),
 }
+
+
+def stage_rotations_only(method="organic", **rotation_options):
+    """Typed settings of a method with the shape solved for the rotation stage's own
+    rotations (``ShapeSettings.select_rotations=False``)."""
+    import dataclasses
+
+    from nrsfm.settings import method_settings
+
+    s = method_settings(method, rotation_options=rotation_options)
+    return dataclasses.replace(s, shape=dataclasses.replace(s.shape,
+                                                            select_rotations=False))
 
 
 def run(names, data, variants=tuple(VARIANTS), say=print):
     import data_tools
     import nrsfm
     from nrsfm.metrics import e3d, rotation_error
-    from nrsfm.stages.rotation_select import row_space_residual
+    from nrsfm.ablation import row_space_residual
 
     warnings.simplefilter("ignore")
     say(f"{'sequence':9s} " + " ".join(f"{v + ' e_R':>13s} {v + ' e3d':>13s} {'rowsp':>8s} {'s':>5s}"
@@ -46,8 +59,8 @@ def run(names, data, variants=tuple(VARIANTS), say=print):
         for v in variants:
             strategy, opts = VARIANTS[v]
             t0 = time.perf_counter()
-            res = nrsfm.reconstruct(seq.W, seq.K, rotation_options=dict(opts)) \
-                if strategy == "organic" else nrsfm.reconstruct(seq.W, seq.K, method="bmm")
+            res = nrsfm.reconstruct(seq.W, seq.K, settings=stage_rotations_only(strategy,
+                                                                                **opts))
             if G0 is None:
                 G0 = res.rotation_stage.G[0]
             if strategy == "bmm":        # the bmm rotations, default shape solver

@@ -182,8 +182,9 @@ else:
 # `family` (`nrsfm.ablation`; the default before issue 18) therefore adds one step after
 # the average: the $K$ triplets of the family consistent with the averaged rotations
 # (`triplet_family`: for fixed $\mathbf R_f$ the valid triplets form a $K$-dimensional
-# linear family), which see $\mathbf M_f$ through different directions, combined per frame with weights $c_{fk}/g_k$ (signal over noise
-# gain, `combine_family`). Below: synthetic sequences with 10% noise, four seeds.
+# linear family), which see $\mathbf M_f$ through different directions, combined per frame
+# with weights $c_{fk}/g_k$ (signal over noise gain, `combine_family`). Below: synthetic
+# sequences with 10% noise, four seeds.
 
 # %%
 rows_noise = []
