@@ -104,3 +104,32 @@ def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
     depth = sel["depth"]
     assert depth["ratio"] == pytest.approx(depth["shape_change"] / depth["rotation_change"])
     assert "depth_sensitivity" in res.diagnostics.signals
+
+
+def test_settings_of_the_issue_18_options():
+    import dataclasses
+
+    from nrsfm.settings import (RotationAblationSettings, RotationSettings, ShapeSettings,
+                                method_settings, rotation_settings)
+
+    with pytest.raises(ValueError, match="determined"):
+        RotationSettings(determined="yes")
+    with pytest.raises(ValueError, match="select_rotations"):
+        ShapeSettings(select_rotations=1)
+    fam = rotation_settings("family")
+    assert isinstance(fam, RotationAblationSettings) and fam.combine == "family"
+    assert type(rotation_settings("organic")) is RotationSettings
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
+    s = method_settings()
+    only = dataclasses.replace(s, shape=dataclasses.replace(s.shape, select_rotations=False))
+    res = nrsfm.reconstruct(seq.W, 2, settings=only)
+    assert "shape_selection" not in res.rotation_stage.info
+    np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
+
+
+def test_family_strategy_runs_the_combination():
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
+    res = nrsfm.reconstruct(seq.W, 2, rotation_options=dict(strategy="family"))
+    assert res.rotation_stage.strategy == "family"
+    assert "G_family" in res.rotation_stage.info
+    assert "G_family" not in nrsfm.reconstruct(seq.W, 2).rotation_stage.info
