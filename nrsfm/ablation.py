@@ -4,7 +4,8 @@ The production path (:mod:`nrsfm.stages`) runs the ``organic`` and ``bmm`` rotat
 strategies with the triplet search; this module holds what the measurements in
 ``docs/rotation_stage.md`` compared them with, built from the same stage functions:
 
-* rotation strategies ``literal``, ``multistart``, ``windows``, ``bootstrap`` and the step
+* rotation strategies ``family`` (:mod:`nrsfm.ablation_family`), ``literal``,
+  ``multistart``, ``windows``, ``bootstrap`` and the step
   variants (chordal filter metric, camera-scale gate and weights, bootstrap or random frame
   subsets, chordal L2 average, refit onto one triplet):
   :func:`estimate_rotations_ablation` with a :class:`nrsfm.settings.RotationAblationSettings`
@@ -12,7 +13,7 @@ strategies with the triplet search; this module holds what the measurements in
 * triplet starts other than the search: Dai's relaxation as specified
   (:func:`solution_space`, :func:`relaxed_gram`), its column blocks and a screened
   multistart (:func:`corrective_triplets_from`);
-* :func:`chordal_mean`, :func:`triplet_from_rotations`.
+* :func:`chordal_mean`, :func:`triplet_from_rotations`, :func:`row_space_residual`.
 """
 
 from __future__ import annotations
@@ -22,27 +23,30 @@ import time
 
 import numpy as np
 
+from .ablation_family import combine_family, combine_triplets, triplet_family
 from .geometry import average_rotations, project_to_so3
 from .settings import RotationAblationSettings, RotationSettings
 from .stages.corrective import (CorrectiveResult, _normalise_triplet, constraint_matrix,
                                 corrective_triplets, gram_from_vech, penalized_gram,
                                 refine_triplet, triplet_cost, triplets_from_gram)
+from .stages.rotation_select import in_determined_subspace, lift_result
 from .stages.rotations import (MIN_WINDOW_FRAMES, _say, average_samples, check_motion,
                                record_search, rotations_from_triplet_set,
                                rotations_from_triplets, sample_weights, triplets_on_subsets,
                                window_weights)
 
-__all__ = ["STRATEGIES", "chordal_mean", "corrective_triplets_from",
-           "estimate_rotations_ablation", "relaxed_gram", "solution_space", "subset_weights",
-           "triplet_from_rotations"]
+__all__ = ["STRATEGIES", "chordal_mean", "combine_family", "corrective_triplets_from",
+           "estimate_rotations_ablation", "relaxed_gram", "row_space_residual",
+           "solution_space", "subset_weights", "triplet_family", "triplet_from_rotations"]
 
 #: strategy name -> what it does
 STRATEGIES = {
     "organic": "default: the best triplet plus K-1 triplets refined on temporal windows "
                "of 90% of the frames (leave-10%-out), registered, filtered at delta "
-               "against their L1 average, L1-averaged; then the K triplets of the family "
-               "consistent with that average, combined per frame by signal-to-noise "
-               "weights (maximum-ratio combination)",
+               "against their L1 average, L1-averaged (the paper's averaging)",
+    "family": "organic, then the K triplets of the family consistent with the average, "
+              "combined per frame by signal-to-noise weights (maximum-ratio combination; "
+              "the default before issue 18)",
     "bmm": "Dai et al.: the best single triplet only",
     "literal": "the paper read literally: the K column triplets of the relaxed Gram "
                "matrix, each refined; register to the lowest-cost one; filter at delta; "
@@ -79,15 +83,17 @@ def estimate_rotations_ablation(M_hat, K, settings=None, seed=0, progress=None):
         if not isinstance(settings, RotationSettings):
             raise ValueError(f"settings must be RotationSettings; got {settings!r}")
         settings = RotationAblationSettings(**dataclasses.asdict(settings))
-    M = check_motion(M_hat, K)
-    say, info, timings = _say(progress), {}, {}
+    say, timings = _say(progress), {}
+    M, k, sub, info = in_determined_subspace(check_motion(M_hat, K), K, settings.determined,
+                                             say)
     t0 = time.perf_counter()
-    G = _ablation_triplets(M, K, settings, seed, info, say)
+    G = _ablation_triplets(M, k, settings, seed, info, say)
     timings["triplets"] = time.perf_counter() - t0
-    return rotations_from_triplet_set(
-        M, K, G, settings, info=info, timings=timings, say=say, seed=seed,
+    return lift_result(rotations_from_triplet_set(
+        M, k, G, settings, info=info, timings=timings, say=say, seed=seed,
         weigh=_gated_weights, average=_average, metric=settings.filter_metric,
-        refit=_refit if settings.refit else None)
+        refit=_refit if settings.refit else None,
+        combine=combine_triplets if settings.combine == "family" else None), sub, K)
 
 
 def _ablation_triplets(M, K, s, seed, info, say):
@@ -222,6 +228,31 @@ def triplet_from_rotations(M_hat, R, G0, n_iter=30):
 
 
 # --------------------------------------------------------------------------- triplets
+def row_space_residual(M_hat, R, G0):
+    """How far rotations are from cameras one triplet can give: ``min ||M_hat G - s R||``.
+
+    The factorisation model (Eq. 1) has one G for all frames, ``M_f G = c_f R_f[:2]``;
+    rotations averaged per frame need not be of that form. Fits G and the per-frame scales
+    by alternating least squares (:func:`triplet_from_rotations`, started from ``G0``).
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    R : (F, 3, 3) ndarray
+    G0 : (3K, 3) ndarray
+
+    Returns
+    -------
+    float
+        ``||M_hat G - s R[:2]||_F / ||s R[:2]||_F`` at the fit (0: exactly consistent).
+    """
+    M = np.asarray(M_hat, float)
+    F = M.shape[0] // 2
+    G, s = triplet_from_rotations(M, R, G0)
+    target = (s[:, None, None] * np.asarray(R, float)[:, :2]).reshape(2 * F, 3)
+    return float(np.linalg.norm(M @ G - target) / max(np.linalg.norm(target), 1e-300))
+
+
 def solution_space(A, K):
     """Basis of the (approximate) null space of A: the last 2K^2 - K right singular vectors.
 

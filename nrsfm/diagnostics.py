@@ -32,6 +32,14 @@ Signals (name: meaning; flagged when)
 * ``camera_spread_deg``: largest angle (degrees) between a frame's estimated viewing
   direction (third row of R_f, up to the depth sign) and their mean; flagged below
   ``CAMERA_SPREAD_MIN_DEG`` (a nearly static camera: depth is not observed).
+* ``depth_sensitivity``: how much the shapes move per unit of rotation change between
+  the stage's averaged rotations and its best single triplet's (both are solved by the
+  shape stage, :func:`nrsfm.stages.rotation_select.depth_sensitivity`); flagged above
+  ``DEPTH_SENSITIVITY_MAX`` (the camera motion does not determine the depth of the
+  deformation: a limit of the method, not a failed search).
+* ``triplet_cost_ratio`` above ``COST_RATIO_MAX`` is a flag only when other random starts
+  reach a lower cost (a failed search, :func:`nrsfm.stages.rotation_select.lower_minimum`);
+  otherwise a note (the rank-3K model does not fit W exactly, as with real shapes).
 * ``looks_transposed``: Dai's cost per frame of W is much higher than that of ``W'``
   read as measurements (only computed when the cost ratio is flagged and ``W'`` has an
   even number of rows).
@@ -45,13 +53,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .noise import noise_from_singular_values
+from .stages.rotation_select import DETERMINED_RTOL, lower_minimum
 
 __all__ = ["NRSfMWarning", "Diagnostics", "THRESHOLDS", "RANK_RTOL", "RANK_GAP_MIN",
            "CONDITION_MAX", "COST_RATIO_MAX", "CAMERA_SPREAD_MIN_DEG", "KEPT_MIN", "SIGN_FRACTION_MAX",
            "predicted_triplet_cost", "numerical_rank", "diagnose"]
 
-#: singular values below ``RANK_RTOL * s_1`` count as zero
-RANK_RTOL = 1e-8
+#: singular values below ``RANK_RTOL * s_1`` count as zero (the rotation stage's tolerance
+#: for the determined subspace, :mod:`nrsfm.stages.rotation_select`)
+RANK_RTOL = DETERMINED_RTOL
 #: smallest acceptable ``s_3K / s_3K+1``
 RANK_GAP_MIN = 1.02
 #: largest acceptable ``s_1 / s_3K``
@@ -62,6 +72,13 @@ COST_RATIO_MAX = 4.0
 KEPT_MIN = 0.5
 #: largest acceptable fraction of frames whose depth sign came from smoothness
 SIGN_FRACTION_MAX = 0.10
+
+#: largest acceptable ratio of the shapes' change to the rotations' change between the
+#: two rotation estimates (``nrsfm.stages.rotation_select.depth_sensitivity``)
+DEPTH_SENSITIVITY_MAX = 1.0
+#: ... when the shapes themselves change by more than this (e3d between the two shape sets;
+#: below it both rotation estimates are exact to the solvers' precision)
+DEPTH_SHAPE_CHANGE_MIN = 0.01
 
 #: smallest acceptable largest angle between a viewing direction and their mean (degrees)
 CAMERA_SPREAD_MIN_DEG = 10.0
@@ -77,7 +94,9 @@ THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank=
                   condition=f"> {CONDITION_MAX:g}", triplet_cost_ratio=f"> {COST_RATIO_MAX}",
                   kept_fraction=f"< {KEPT_MIN}",
                   smoothness_sign_fraction=f"> {SIGN_FRACTION_MAX}",
-                  triplet_hits="< 2", looks_transposed="True")
+                  triplet_hits="< 2", looks_transposed="True",
+                  depth_sensitivity=f"> {DEPTH_SENSITIVITY_MAX} with a shape change "
+                                    f"> {DEPTH_SHAPE_CHANGE_MIN}")
 
 
 class NRSfMWarning(UserWarning):
@@ -150,7 +169,8 @@ def predicted_triplet_cost(M_hat, G, singular_values, sigma):
     G = np.asarray(G, float)
     r = M.shape[1]
     s = np.asarray(singular_values, float)[:r]
-    s2 = sigma ** 2 * np.sum(G ** 2 / s[:, None]) / 3.0
+    live = s > RANK_RTOL * s[0]                # rows W does not determine carry no noise
+    s2 = sigma ** 2 * np.sum(G[live] ** 2 / s[live, None]) / 3.0
     B = (M @ G).reshape(-1, 2, 3)
     c2 = 0.5 * np.sum(B ** 2, axis=(1, 2))
     c2 = np.maximum(c2, 1e-12 * max(np.median(c2), 1e-300))
@@ -220,7 +240,8 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
 
     if rotation_stage is not None and M_hat is not None:
-        _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, rank >= r, sig, flags)
+        _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, rank >= r, sig, flags,
+                          notes)
     if rank_msg is not None:
         # A rank-deficient W with a confirmed, noise-level triplet is not by itself a failure
         # (shark: rank 5 < 3K = 9, e3d at the paper's level): a note then, a flag (and the
@@ -228,31 +249,69 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
         if flags or rotation_stage is None:
             flags.insert(0, rank_msg)
         else:
+            k_eff = rotation_stage.info.get("effective_K")
+            if k_eff is not None:
+                rank_msg = (f"W has numerical rank {rank} < 3K = {r}: the rotations were "
+                            f"solved in the determined {rank}-dimensional subspace of the "
+                            f"motion factor ({k_eff} corrective triplet(s)); the shapes use "
+                            f"K = {K}")
             notes.append(rank_msg)
     return Diagnostics(signals=sig, flags=flags, notes=notes)
 
 
-def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, sig, flags):
-    """The rotation stage's signals and flags (into ``sig`` and ``flags``): the triplet's
-    cost against the noise prediction, the search's hits, the filter, the depth signs, the
-    cameras' spread and the transpose test."""
+def _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes):
+    """Dai's cost of the best triplet against the noise prediction: a flag when other
+    random starts reach a lower cost (a failed search), a note otherwise (the rank-3K model
+    does not fit W exactly, as with real shapes). Returns (cost, ratio)."""
+    F = M_hat.shape[0] // 2
+    cost = float(rotation_stage.info["corrective_costs"][0])
+    pred = predicted_triplet_cost(M_hat, rotation_stage.G[0], s, sigma)
+    # noise-free data: a small absolute floor keeps the ratio finite and meaningful
+    ratio = cost / max(pred, COST_FLOOR_PER_FRAME * F)
+    sig.update(triplet_cost=cost, triplet_cost_predicted=pred, triplet_cost_ratio=ratio)
+    if ratio <= COST_RATIO_MAX:
+        return cost, ratio
+    lower, other = lower_minimum(M_hat, K, cost, seed)
+    sig["triplet_cost_other_starts"] = other
+    if lower:
+        flags.append(f"Dai's cost of the best corrective triplet {cost:.3g} is {ratio:.3g} "
+                     f"x what the noise level of W predicts ({pred:.3g}; flagged above "
+                     f"{COST_RATIO_MAX}) and other starts reach {other:.3g}: the triplet "
+                     f"search ended in a bad minimum")
+    else:
+        notes.append(f"Dai's cost of the best corrective triplet {cost:.3g} is {ratio:.3g} "
+                     f"x what independent noise on W predicts ({pred:.3g}) and no other "
+                     f"start does better: the rank-{3 * K} model does not fit W exactly "
+                     f"(real shapes are not of rank K), not a failed search")
+    return cost, ratio
+
+
+def _depth_signal(info, sig, flags):
+    """Whether the camera motion determines the depth: the shapes' change per rotation
+    change between the two rotation sets the shape stage solved (``shape_selection``)."""
+    depth = (info.get("shape_selection") or {}).get("depth")
+    if depth is None:
+        return
+    sig["depth_sensitivity"] = depth["ratio"]
+    if depth["ratio"] > DEPTH_SENSITIVITY_MAX and \
+            depth["shape_change"] > DEPTH_SHAPE_CHANGE_MIN:
+        flags.append(f"the shapes move {depth['ratio']:.3g} x as much as the rotations "
+                     f"between the two rotation estimates (shapes "
+                     f"{depth['shape_change']:.3g}, rotations "
+                     f"{depth['rotation_change']:.3g}; flagged above "
+                     f"{DEPTH_SENSITIVITY_MAX}): the camera motion does not determine the "
+                     f"depth of the deformation")
+
+
+def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, sig, flags,
+                      notes):
+    """The rotation stage's signals, flags and notes (into ``sig``, ``flags``, ``notes``):
+    the triplet's cost against the noise prediction, the search's hits, the filter, the
+    depth signs, the cameras' spread, the depth sensitivity and the transpose test."""
     twoF, P = W.shape
     F = twoF // 2
     info = rotation_stage.info
-    G0 = rotation_stage.G[0]
-    cost = float(info["corrective_costs"][0])
-    pred = predicted_triplet_cost(M_hat, G0, s, sigma)
-    # noise-free data: a small absolute floor keeps the ratio finite and meaningful
-    floor = COST_FLOOR_PER_FRAME * F
-    ratio = cost / max(pred, floor)
-    sig["triplet_cost"] = cost
-    sig["triplet_cost_predicted"] = pred
-    sig["triplet_cost_ratio"] = ratio
-    if ratio > COST_RATIO_MAX:
-        flags.append(f"Dai's cost of the best corrective triplet {cost:.3g} is "
-                     f"{ratio:.3g} x what the noise level of W predicts ({pred:.3g}; "
-                     f"flagged above {COST_RATIO_MAX}): a bad minimum or W not an "
-                     f"orthographic measurement matrix")
+    cost, ratio = _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes)
     search = info.get("corrective_search")
     if search:
         sig["triplet_hits"] = int(search["hits"])
@@ -282,6 +341,7 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
         flags.append(f"the estimated viewing directions stay within {spread:.2g} degrees "
                      f"of their mean (flagged below {CAMERA_SPREAD_MIN_DEG} degrees): a "
                      f"(nearly) static camera leaves depth unobserved")
+    _depth_signal(info, sig, flags)
     sig["looks_transposed"] = False
     if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
         Wt = W.T - W.T.mean(axis=1, keepdims=True)

@@ -21,6 +21,8 @@ from .diagnostics import diagnose
 from .settings import METHODS, RotationAblationSettings, Settings, method_settings
 from .stages.measurement import Factorization, measure
 from .stages.rotations import estimate_rotations
+from .stages.rotation_select import (depth_sensitivity, rotation_candidates,
+                                     select_by_shape_objective)
 from .stages.shape import ShapeResult, solve_shape
 from .validation import (blas_threads, check_K, check_measurements, check_rotations,
                          power_of_two_scale)
@@ -217,6 +219,33 @@ def run_rotation_stage(M_hat, K, settings, seed=0, progress=None):
     return estimate_rotations(M_hat, K, settings, seed, progress)
 
 
+def shape_for_rotations(Wn, rotations, K, rotation_stage, settings, say):
+    """The shape stage; with ``settings.select_rotations`` and a rotation stage that ran,
+    solved for the stage's rotations and its best single triplet's, keeping the lower
+    shape objective (:mod:`nrsfm.stages.rotation_select`; recorded in
+    ``rotation_stage.info["shape_selection"]``).
+
+    Returns
+    -------
+    rotations : (F, 3, 3) ndarray
+        The rotations the shapes were solved with.
+    shape_stage : ShapeResult
+    """
+    if rotation_stage is None or not settings.select_rotations:
+        return rotations, solve_shape(Wn, rotations, K, settings, say)
+    cands = rotation_candidates(rotation_stage)
+    pick, results, objectives = select_by_shape_objective(
+        cands, lambda R: solve_shape(Wn, R, K, settings, say))
+    names = [name for name, _ in cands]
+    rotation_stage.info["shape_selection"] = dict(
+        candidates=names, objectives=objectives, chosen=names[pick],
+        depth=depth_sensitivity(cands, results))
+    say(f"rotations for the shape: {names[pick]} (objectives " + ", ".join(
+        f"{n} {v:.6g}" if v is not None else f"{n} -" for n, v in zip(names, objectives))
+        + ")")
+    return cands[pick][1], results[pick]
+
+
 def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
                 shape_options=None, shape_solver="bilinear", progress=False,
                 blas_thread_limit=1, missing="complete", settings=None):
@@ -314,7 +343,8 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                                                     say)
             rotations = rotation_stage.rotations
         with _timed(timings, "shape"):
-            shape_stage = solve_shape(meas.Wn, rotations, K, settings.shape, say)
+            rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
+                                                         settings.shape, say)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
     diagnostics.warn(stacklevel=2)
     params = dict(method=settings.method, K=K, seed=seed,

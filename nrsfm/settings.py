@@ -46,6 +46,11 @@ def _one_of(name, value, allowed):
         raise ValueError(f"{name} must be one of {list(allowed)}; got {value!r}")
 
 
+def _flag(name, value):
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+
+
 def _fraction(name, value):
     if not (check_positive(name, value) <= 1.0):
         raise ValueError(f"{name} must be in (0, 1]; got {value!r}")
@@ -97,7 +102,7 @@ class RotationSettings:
     ----------
     strategy : {"organic", "bmm"}
         ``organic``: the best triplet plus K - 1 triplets refined on temporal windows,
-        registered, filtered, L1-averaged, then the family combination. ``bmm``: the best
+        registered, filtered, L1-averaged (the paper's averaging). ``bmm``: the best
         triplet only (Dai et al.).
     n_triplets : int or None
         Triplets averaged (default K).
@@ -107,11 +112,10 @@ class RotationSettings:
         Filter threshold (rad, geodesic angle; paper: 0.05).
     filter_against : {"average", "reference"} or None
         Filter the samples against their L1 average, the reference triplet (paper), or not.
-    combine : {"family"} or None
-        Maximum-ratio combination of the triplet family consistent with the average.
-    combine_iter, combine_tol : int, float
-        At most ``combine_iter`` family <-> rotation alternations, stopped when the
-        median per-frame change (rad) is below ``combine_tol``.
+    determined : bool
+        W of numerical rank r < 3K (singular values below 1e-6 s_1): solve the triplets in
+        the determined r-dimensional subspace of the motion factor
+        (:mod:`nrsfm.stages.rotation_select`); False: search all 3K rows of G.
     max_iter, eps : int, float
         Weiszfeld iterations and step tolerance of the L1 average (Alg. 1).
     hits, max_starts : int
@@ -130,9 +134,7 @@ class RotationSettings:
     window: float = 0.9
     delta: float = 0.05
     filter_against: Optional[str] = "average"
-    combine: Optional[str] = "family"
-    combine_iter: int = 5
-    combine_tol: float = 1e-3
+    determined: bool = True
     max_iter: int = 50
     eps: float = 1e-3
     hits: int = 2
@@ -147,9 +149,7 @@ class RotationSettings:
         _fraction("window", self.window)
         check_positive("delta", self.delta)
         _one_of("filter_against", self.filter_against, self.FILTERS)
-        _one_of("combine", self.combine, ("family", None))
-        check_integer(self.combine_iter, "combine_iter", minimum=1)
-        check_positive("combine_tol", self.combine_tol, strict=False)
+        _flag("determined", self.determined)
         check_integer(self.max_iter, "max_iter", minimum=1)
         check_positive("eps", self.eps, strict=False)
         check_integer(self.hits, "hits", minimum=1)
@@ -162,7 +162,7 @@ class RotationSettings:
         """The settings of a strategy (chosen by the measurements in
         ``docs/rotation_stage.md``)."""
         if strategy == "bmm":
-            return cls(strategy="bmm", window=0.5, filter_against="reference", combine=None)
+            return cls(strategy="bmm", window=0.5, filter_against="reference")
         return cls(strategy=strategy)
 
 
@@ -173,8 +173,15 @@ class RotationAblationSettings(RotationSettings):
 
     Attributes
     ----------
-    strategy : {"organic", "bmm", "literal", "multistart", "windows", "bootstrap"}
+    strategy : {"organic", "family", "bmm", "literal", "multistart", "windows",
+                "bootstrap"}
         See :data:`nrsfm.ablation.STRATEGIES`.
+    combine : {"family"} or None
+        Maximum-ratio combination of the triplet family consistent with the average
+        (:mod:`nrsfm.ablation_family`).
+    combine_iter, combine_tol : int, float
+        At most ``combine_iter`` family <-> rotation alternations, stopped when the
+        median per-frame change (rad) is below ``combine_tol``.
     filter_metric : {"angle", "chordal"}
     coef_gate : float
         Drop samples with ``|c_fk| < coef_gate * median_f |c_fk|``.
@@ -195,8 +202,11 @@ class RotationAblationSettings(RotationSettings):
         Project the average back onto the single triplet that fits it best.
     """
 
-    STRATEGIES: ClassVar[tuple] = ("organic", "bmm", "literal", "multistart", "windows",
-                                   "bootstrap")
+    STRATEGIES: ClassVar[tuple] = ("organic", "family", "bmm", "literal", "multistart",
+                                   "windows", "bootstrap")
+    combine: Optional[str] = None
+    combine_iter: int = 5
+    combine_tol: float = 1e-3
     filter_metric: str = "angle"
     coef_gate: float = 0.0
     coef_weights: bool = False
@@ -213,6 +223,9 @@ class RotationAblationSettings(RotationSettings):
 
     def __post_init__(self):
         super().__post_init__()
+        _one_of("combine", self.combine, ("family", None))
+        check_integer(self.combine_iter, "combine_iter", minimum=1)
+        check_positive("combine_tol", self.combine_tol, strict=False)
         _one_of("filter_metric", self.filter_metric, ("angle", "chordal"))
         check_positive("coef_gate", self.coef_gate, strict=False)
         _one_of("subsets", self.subsets, ("windows", "bootstrap", "random"))
@@ -227,8 +240,9 @@ class RotationAblationSettings(RotationSettings):
     def preset(cls, strategy="organic"):
         """Research strategies' settings (``docs/rotation_stage.md``)."""
         variants = {
-            "organic": dict(window=0.9, filter_against="average", combine="family"),
-            "bmm": dict(window=0.5, filter_against="reference", combine=None),
+            "organic": dict(window=0.9, filter_against="average"),
+            "family": dict(window=0.9, filter_against="average", combine="family"),
+            "bmm": dict(window=0.5, filter_against="reference"),
             "windows": dict(window=0.5, filter_against=None),
             "bootstrap": dict(subsets="bootstrap", window=0.5, filter_against="average"),
             "literal": dict(filter_against="reference", gram="nuclear"),
@@ -396,13 +410,20 @@ class ShapeSettings:
         None only with :class:`PseudoInverseSettings` or :class:`ClosedFormSettings`.
     solver : SolverSettings
         The solver and its typed settings.
+    select_rotations : bool
+        When the rotation stage ran: solve the shape with the stage's rotations and with
+        its best single triplet's, and keep the lower shape objective
+        (:func:`nrsfm.stages.rotation_select.select_by_shape_objective`; issue 18). False:
+        the stage's rotations only.
     """
 
     prior: Optional[str] = "organic"
     solver: SolverSettings = BilinearSettings()
+    select_rotations: bool = True
 
     def __post_init__(self):
         _one_of("shape prior", self.prior, tuple(PRIORS) + (None,))
+        _flag("select_rotations", self.select_rotations)
         if not isinstance(self.solver, SolverSettings):
             raise ValueError(f"solver must be a SolverSettings (e.g. BilinearSettings()); "
                              f"got {self.solver!r}")

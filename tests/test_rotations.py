@@ -178,7 +178,7 @@ def test_every_strategy_exact_noise_free(strategy, options):
 @pytest.mark.parametrize("K", [2, 3])
 def test_triplet_family_noise_free_is_k_dimensional(K):
     seq, M = _seq(K, "smooth", seed=10 + K)
-    G, eig = RT.triplet_family(M, seq.rotations, K)
+    G, eig = AB.triplet_family(M, seq.rotations, K)
     assert G.shape == (K, 3 * K, 3)
     # exact data: the K family members give M_f G^k = c_fk R_f[:2] exactly
     assert eig.max() < 1e-10
@@ -193,8 +193,8 @@ def test_combine_family_beats_single_triplet_under_noise():
     for seed in range(3):
         seq, M = _seq(3, "smooth", noise=0.08, seed=20 + seed, F=80)
         single = RT.estimate_rotations(M, 3, RotationSettings.preset("bmm"), seed=0)
-        G, _ = RT.triplet_family(M, single.rotations, 3)
-        R, w = RT.combine_family(M, G, single.rotations)
+        G, _ = AB.triplet_family(M, single.rotations, 3)
+        R, w = AB.combine_family(M, G, single.rotations)
         assert w.shape == (3, 80) and np.all(w >= 0)
         R, _ = RT.resolve_depth_signs(R)
         errs.append((rotation_error(R, seq.rotations),

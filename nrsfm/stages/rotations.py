@@ -1,5 +1,5 @@
 """Rotation stage (paper Sec. 3.1): triplets -> per-triplet rotations -> registration ->
-filtering -> per-frame L1 single rotation averaging -> family combination -> depth signs.
+filtering -> per-frame L1 single rotation averaging -> depth signs.
 
 Conventions
 -----------
@@ -15,10 +15,12 @@ Conventions
   :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
 
 The K triplets (the paper says only "using Dai et al." for every k): the best one of the
-search, K - 1 refined on temporal windows and (``organic``) the family consistent with
-their average, combined per frame by signal-to-noise weights. :func:`estimate_rotations`
-runs ``organic`` and ``bmm`` (:class:`nrsfm.settings.RotationSettings`); research
-strategies: :mod:`nrsfm.ablation`. Measurements: ``docs/rotation_stage.md``.
+search and K - 1 refined on temporal windows. W of numerical rank r < 3K: the stage runs in
+the determined r-dimensional subspace of ``M_hat`` (:mod:`.rotation_select`).
+:func:`estimate_rotations` runs ``organic`` and ``bmm``
+(:class:`nrsfm.settings.RotationSettings`); research strategies (``family``: the family
+combination after the average, the default before issue 18): :mod:`nrsfm.ablation`.
+Measurements: ``docs/rotation_stage.md``.
 """
 
 from __future__ import annotations
@@ -31,11 +33,11 @@ import numpy as np
 from ..geometry import average_rotations, procrustes_so3, project_to_so3, rotation_angle
 from ..settings import RotationAblationSettings, RotationSettings
 from .corrective import corrective_triplets, refine_triplet, triplet_cost
+from .rotation_select import in_determined_subspace, lift_result
 
-__all__ = ["FLIP", "MIRROR", "RotationResult", "combine_family",
-           "estimate_rotations", "filter_rotations", "register_rotations",
-           "register_triplets", "resolve_depth_signs", "rotations_from_triplet_set",
-           "rotations_from_triplets", "triplet_family", "triplets_on_subsets",
+__all__ = ["FLIP", "MIRROR", "RotationResult", "estimate_rotations", "filter_rotations",
+           "register_rotations", "register_triplets", "resolve_depth_signs",
+           "rotations_from_triplet_set", "rotations_from_triplets", "triplets_on_subsets",
            "window_weights"]
 
 FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
@@ -266,76 +268,6 @@ def triplets_on_subsets(M_hat, G0, weights, method="lm"):
     return np.stack(Gs), np.array(costs)
 
 
-# --------------------------------------------------------------------------- combining
-def triplet_family(M_hat, R, K):
-    """The K triplets most consistent with given rotations: ``M_f G ~ c_f R_f[:2]``.
-
-    For fixed rotations the valid triplets form a linear family (``G_full (a (x) I_3)``,
-    a in R^K, for the true corrective matrix G_full): the null space of the map
-    ``G -> (I - P_f) vec(M_f G)`` over all frames, P_f the projection onto ``R_f[:2]``.
-    Returned: the K eigenvectors of its Gram matrix with the smallest eigenvalues.
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-    R : (F, 3, 3) ndarray
-    K : int
-
-    Returns
-    -------
-    G : (K, 3K, 3) ndarray, unit Frobenius norm each
-    eigenvalues : (K,) ndarray, relative to the largest one (small = consistent)
-    """
-    M = np.asarray(M_hat, float)
-    F, n = M.shape[0] // 2, M.shape[1]
-    Mf = M.reshape(F, 2, n)
-    # vec(M_f G) (row-major 2 x 3) = A_f vec(G), vec(G) row-major (3K x 3)
-    A = np.einsum("fil,jm->fijlm", Mf, np.eye(3)).reshape(F, 6, 3 * n)
-    r = np.asarray(R, float)[:, :2].reshape(F, 6) / np.sqrt(2.0)
-    PA = A - r[:, :, None] * np.einsum("fa,faj->fj", r, A)[:, None, :]
-    H = A.reshape(-1, 3 * n).T @ PA.reshape(-1, 3 * n)
-    w, V = np.linalg.eigh(0.5 * (H + H.T))
-    return V[:, :K].T.reshape(K, n, 3), w[:K] / max(w[-1], 1e-300)
-
-
-def combine_family(M_hat, G, R_ref, singular_values=None):
-    """Per-frame maximum-ratio combination of the K family triplets' camera blocks.
-
-    Each block ``B_fk = M_f G^k`` is ``c_fk R_f[:2]`` plus noise whose variance is
-    proportional to ``g_k = ||S^-1/2 G^k||_F^2`` (noise on W reaches M_hat through
-    ``S^-1/2``, S the top 3K singular values). The combination
-    ``sum_k (c_fk / g_k) B_fk`` (``c_fk = <B_fk, R_ref,f[:2]> / 2``, each triplet's
-    3 x 3 gauge first aligned to ``R_ref`` by Procrustes) weights every sample by its
-    signal-to-noise ratio; its rows, completed by their cross product and projected onto
-    SO(3), give R_f.
-
-    Returns
-    -------
-    R : (F, 3, 3) ndarray
-    weights : (K, F) ndarray, ``c_fk^2 / g_k`` (the samples' relative information)
-    """
-    M = np.asarray(M_hat, float)
-    F = M.shape[0] // 2
-    s = np.sum(M ** 2, axis=0) if singular_values is None else \
-        np.asarray(singular_values, float)[:M.shape[1]]
-    ref = np.asarray(R_ref, float)[:, :2]
-    B = np.einsum("ri,kij->krj", M, G).reshape(len(G), F, 2, 3)
-    S = np.zeros((F, 2, 3))
-    weights = np.zeros((len(G), F))
-    for k in range(len(G)):
-        g = float(np.sum(G[k] ** 2 / s[:, None]))
-        c = np.einsum("fij,fij->f", B[k], ref)
-        N = np.einsum("f,fij,fik->jk", np.sign(c), B[k], ref)       # gauge (Procrustes)
-        Bk = B[k] @ procrustes_so3(N)
-        c = 0.5 * np.einsum("fij,fij->f", Bk, ref)
-        S += (c / g)[:, None, None] * Bk
-        weights[k] = c ** 2 / g
-    L = np.concatenate([S, np.cross(S[:, 0], S[:, 1])[:, None]], axis=1)
-    bad = ~(np.linalg.norm(L[:, 2], axis=1) > 0)
-    L[bad] = np.asarray(R_ref, float)[bad]
-    return project_to_so3(L), weights
-
-
 # --------------------------------------------------------------------------- result
 @dataclass
 class RotationResult:
@@ -475,24 +407,6 @@ def average_samples(registered, kept, weights, settings):
                              settings.max_iter, settings.eps, return_info=True)
 
 
-def combine_triplets(M, K, R, settings, info):
-    """Step 6 (``combine="family"``): the family of triplets consistent with ``R``,
-    combined per frame by maximum-ratio weights, alternated at most ``combine_iter`` times
-    until the median per-frame change (rad) is below ``combine_tol``."""
-    sv = np.sum(M ** 2, axis=0)                            # M_hat = U sqrt(S): |col|^2 = s
-    steps = []
-    for _ in range(settings.combine_iter):
-        G_fam, fam_eig = triplet_family(M, R, K)
-        new, fam_w = combine_family(M, G_fam, R, sv)
-        steps.append(float(np.median(rotation_angle(new, R))))
-        R = new
-        if steps[-1] < settings.combine_tol:
-            break
-    info.update(G_family=G_fam, family_eigenvalues=fam_eig, family_weights=fam_w,
-                combine_steps=np.array(steps))
-    return R
-
-
 class _Clock:
     """Seconds per step, recorded into ``timings``."""
 
@@ -507,10 +421,10 @@ class _Clock:
 
 def rotations_from_triplet_set(M, K, G, settings, *, info, timings, say, seed=0,
                                weigh=sample_weights, average=average_samples, refit=None,
-                               metric="angle"):
+                               combine=None, metric="angle"):
     """Steps 2-7 for given triplets G (m, 3K, 3): lift, register, filter, average,
-    combine, depth signs. ``weigh``, ``average``, ``refit`` and ``metric`` are the
-    replaceable steps (:mod:`nrsfm.ablation` passes its variants)."""
+    (refit, combine), depth signs. ``weigh``, ``average``, ``refit``, ``combine`` and
+    ``metric`` are the replaceable steps (:mod:`nrsfm.ablation` passes its variants)."""
     clock = _Clock(timings)
     info["triplet_costs"] = np.array([triplet_cost(g, M) for g in G])
     per_triplet, coef, valid = rotations_from_triplets(M, G)
@@ -531,8 +445,8 @@ def rotations_from_triplet_set(M, K, G, settings, *, info, timings, say, seed=0,
     if refit is not None and len(G) > 1:
         final = refit(M, G, averaged, info)
         clock.lap("refit")
-    if settings.combine == "family" and K > 1:
-        final = combine_triplets(M, K, final, settings, info)
+    if combine is not None and K > 1:
+        final = combine(M, K, final, settings, info)
         clock.lap("combine")
     rotations, flipped = resolve_depth_signs(final)
     say(f"rotations: {len(G)} triplet(s), {kept.sum()} of {kept.size} samples kept, "
@@ -558,8 +472,9 @@ def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
         :func:`nrsfm.stages.corrective.corrective_triplets`) plus K - 1 triplets refined
         on temporal windows of 90% of the frames; register (flip-aware Eq. 3), filter at
         delta = 0.05 rad from the L1 average of the samples, per-frame L1 average
-        (Alg. 1); then the K triplets of the family consistent with that average,
-        combined per frame by maximum-ratio weights; depth signs by smoothness.
+        (Alg. 1); depth signs by smoothness. ``determined``: W of numerical rank
+        r < 3K is solved in the determined subspace with ``effective_K(r, K)`` triplets
+        (``info["determined_rank"]``, ``info["effective_K"]``).
         ``RotationSettings.preset("bmm")``: the best triplet only (Dai et al.).
     seed : int
         Seed of the random refinement starts (deterministic per seed).
@@ -580,13 +495,15 @@ def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
             not isinstance(settings, RotationSettings):
         raise ValueError("estimate_rotations runs RotationSettings (organic, bmm); research "
                          "settings run through nrsfm.ablation.estimate_rotations_ablation")
-    M = check_motion(M_hat, K)
-    say, info, timings = _say(progress), {}, {}
+    say, timings = _say(progress), {}
+    M, k, sub, info = in_determined_subspace(check_motion(M_hat, K), K, settings.determined,
+                                             say)
     t0 = time.perf_counter()
-    G = production_triplets(M, K, settings, seed, info, say)
+    G = production_triplets(M, k, settings, seed, info, say)
     timings["triplets"] = time.perf_counter() - t0
-    return rotations_from_triplet_set(M, K, G, settings, info=info, timings=timings,
-                                      say=say, seed=seed)
+    return lift_result(rotations_from_triplet_set(M, k, G, settings, info=info,
+                                                  timings=timings, say=say, seed=seed),
+                       sub, K)
 
 
 def _fill_empty(R, empty):

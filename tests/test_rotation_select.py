@@ -1,0 +1,135 @@
+"""W of numerical rank below 3K: rotations from the determined subspace (issue 18)."""
+
+import warnings
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+import data_tools
+import nrsfm
+from nrsfm.metrics import e3d, rotation_error
+from nrsfm.stages.rotation_select import determined_subspace, effective_K, lift_triplets
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    with threadpool_limits(limits=1):
+        yield
+
+
+def _rigid_plus_planar(F=60, P=24, seed=0):
+    """Rigid body plus one planar deformation mode (z = 0): W of rank 5."""
+    seq = data_tools.make_synthetic(F=F, P=P, K=2, seed=seed)
+    B = seq.extra["basis"].copy()
+    B[1, 2] = 0.0
+    cam = seq.rotations @ np.einsum("fk,kip->fip", seq.extra["coefficients"], B)
+    return cam[:, :2].reshape(2 * F, P), cam, seq.rotations
+
+
+def _run(W, K):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = nrsfm.reconstruct(W, K)
+    return res, [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+
+
+def test_subspace_reproduces_the_motion_factor():
+    rng = np.random.default_rng(0)
+    M = np.hstack([rng.standard_normal((40, 5)), np.zeros((40, 4))])
+    M[:, 5:] = 1e-12 * rng.standard_normal((40, 4))           # rounding-level columns
+    sub = determined_subspace(M)
+    assert sub.rank == 5 and sub.deficient and sub.M.shape == (40, 5)
+    G_r = rng.standard_normal((5, 3))
+    np.testing.assert_allclose(M @ lift_triplets(G_r, sub), sub.M @ G_r, atol=1e-10)
+    assert effective_K(5, 3) == 1 and effective_K(6, 4) == 2 and effective_K(9, 3) == 3
+
+
+def test_subspace_is_gauge_and_unit_invariant():
+    rng = np.random.default_rng(1)
+    M = rng.standard_normal((30, 6)) @ np.diag([5, 3, 2, 1, 0.5, 0.0])
+    a, b = determined_subspace(M), determined_subspace(M * 3.0)
+    np.testing.assert_allclose(b.M, 3.0 * a.M, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(b.V, a.V, atol=1e-12)
+
+
+@pytest.mark.parametrize("K", [2, 3])
+@pytest.mark.parametrize("units", [0.7, 3.0])
+def test_rigid_plus_planar_exact_in_any_units(K, units):
+    W, cam, R = _rigid_plus_planar()
+    res, caught = _run(W * units, K)
+    assert rotation_error(res.rotations, R) <= 1e-5
+    assert e3d(res.shapes, cam) <= 1e-3
+    d = res.diagnostics
+    assert d.signals["numerical_rank"] == 5 and not caught
+    assert any("determined 5-dimensional subspace" in n for n in d.notes)
+
+
+@pytest.mark.parametrize("K_true,extra", [(1, 2), (2, 2), (3, 1)])
+def test_K_above_the_true_K_is_exact(K_true, extra):
+    seq = data_tools.make_synthetic(F=50, P=30, K=K_true, seed=K_true)
+    res, caught = _run(seq.W * 0.7, K_true + extra)
+    assert rotation_error(res.rotations, seq.rotations) <= 1e-5
+    assert e3d(res.shapes, seq.shapes) <= 1e-3
+    assert res.rotation_stage.info["determined_rank"] == 3 * K_true
+    assert not caught
+
+
+def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
+    from nrsfm.settings import RotationSettings
+    from nrsfm.stages.corrective import triplet_cost
+    from nrsfm.stages.measurement import factorize
+    from nrsfm.stages.rotation_select import lower_minimum
+    from nrsfm.stages.rotations import estimate_rotations
+
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=5)
+    f = factorize(seq.W, 2)
+    best = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm")).info["corrective_costs"][0]
+    assert not lower_minimum(f.M_hat, 2, best)[0]
+    bad = triplet_cost(np.random.default_rng(0).standard_normal((6, 3)), f.M_hat)
+    lower, other = lower_minimum(f.M_hat, 2, bad)
+    assert lower and other < bad
+
+
+def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
+    res = nrsfm.reconstruct(seq.W, 2)
+    sel = res.rotation_stage.info["shape_selection"]
+    assert sel["candidates"] == ["organic", "single_triplet"]
+    best = int(np.argmin(sel["objectives"]))
+    assert sel["chosen"] == sel["candidates"][best]
+    single = nrsfm.reconstruct(seq.W, 2, method="bmm").rotations
+    used = single if sel["chosen"] == "single_triplet" else res.rotation_stage.rotations
+    np.testing.assert_allclose(res.rotations, used, atol=1e-9)
+    depth = sel["depth"]
+    assert depth["ratio"] == pytest.approx(depth["shape_change"] / depth["rotation_change"])
+    assert "depth_sensitivity" in res.diagnostics.signals
+
+
+def test_settings_of_the_issue_18_options():
+    import dataclasses
+
+    from nrsfm.settings import (RotationAblationSettings, RotationSettings, ShapeSettings,
+                                method_settings, rotation_settings)
+
+    with pytest.raises(ValueError, match="determined"):
+        RotationSettings(determined="yes")
+    with pytest.raises(ValueError, match="select_rotations"):
+        ShapeSettings(select_rotations=1)
+    fam = rotation_settings("family")
+    assert isinstance(fam, RotationAblationSettings) and fam.combine == "family"
+    assert type(rotation_settings("organic")) is RotationSettings
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
+    s = method_settings()
+    only = dataclasses.replace(s, shape=dataclasses.replace(s.shape, select_rotations=False))
+    res = nrsfm.reconstruct(seq.W, 2, settings=only)
+    assert "shape_selection" not in res.rotation_stage.info
+    np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
+
+
+def test_family_strategy_runs_the_combination():
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
+    res = nrsfm.reconstruct(seq.W, 2, rotation_options=dict(strategy="family"))
+    assert res.rotation_stage.strategy == "family"
+    assert "G_family" in res.rotation_stage.info
+    assert "G_family" not in nrsfm.reconstruct(seq.W, 2).rotation_stage.info
