@@ -450,8 +450,7 @@ class ConstrainedSettings(SolverSettings):
             raise ValueError(f"lam must be > 1 (rho grows each iteration); got {self.lam!r}")
         check_integer(self.max_iter, "max_iter", minimum=1)
         check_integer(self.polish_max_iter, "polish_max_iter", minimum=1)
-        if not isinstance(self.polish, bool):
-            raise ValueError(f"polish must be True or False; got {self.polish!r}")
+        _flag("polish", self.polish)
         if self.rank is not None:
             check_integer(self.rank, "rank", minimum=1)
 

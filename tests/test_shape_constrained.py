@@ -184,3 +184,16 @@ def test_settings_validated():
             ConstrainedSettings(**bad)
     with pytest.raises(ValueError, match="unknown options"):
         solver_settings("constrained", dict(mu=1.0))
+
+
+def test_pipeline_selects_rotations_by_the_constrained_objective():
+    """Without given rotations the pipeline compares the candidates' weighted norms of (C)
+    (``wnn_objective``), and keeps the lower."""
+    import nrsfm
+
+    seq = data_tools.make_synthetic(F=30, P=12, K=1, motion="smooth", seed=5)
+    rec = nrsfm.reconstruct(seq.W, seq.K, shape_solver="constrained")
+    sel = rec.rotation_stage.info["shape_selection"]
+    assert all(v is not None for v in sel["objectives"])
+    assert min(sel["objectives"]) == pytest.approx(rec.shape_stage.wnn_objective)
+    assert rec.shape_stage.wnn_objective == rec.shape_stage.objective

@@ -103,7 +103,9 @@ class ShapeResult:
         ``residual``, ``chosen``, ``certified``, ``kkt``).
     weights, mu, noise, B, C, wnn_objective : optional
         The bilinear solver's dimensionless weights ``a``, balance ``mu`` and the noise
-        level it came from, its factors and its weighted-nuclear-norm objective.
+        level it came from, its factors and its weighted-nuclear-norm objective (the
+        constrained solver: its weights, the inverse KKT multiplier, the noise level
+        eps / sqrt(2FP) and the weighted norm at its feasible end point).
     """
 
     shapes: np.ndarray

@@ -356,8 +356,10 @@ def solve_constrained(W, R, K, prior, settings, progress=None):
     Returns
     -------
     ShapeResult
-        ``objective`` the organic norm of (C) at the end, ``optimality`` the ADMM's relative
-        gap; ``params`` holds every constant and ``eps``, ``residual``, ``chosen``,
+        ``objective`` and ``wnn_objective`` the weighted norm of (C) at the end (the data
+        term is the constraint, the same for all cameras R: the pipeline's choice between
+        rotations compares this), ``optimality`` the ADMM's relative gap; ``params``
+        holds every constant and ``eps``, ``residual``, ``chosen``,
         ``candidate_objectives``, ``certified`` and ``kkt`` (:class:`OrganicFitResult`).
     """
     if prior not in PRIORS:
@@ -376,6 +378,7 @@ def solve_constrained(W, R, K, prior, settings, progress=None):
         theta=res.weights, N=PRIORS[prior], prior=prior, solver="constrained", history=history,
         n_iter=res.n_iter, converged=res.converged, objective=res.objective,
         optimality=res.optimality, params=params, weights=res.weights,
+        wnn_objective=res.objective,
         mu=res.kkt.get("mu"), noise=res.eps / math.sqrt(2 * F * P))
 
 
