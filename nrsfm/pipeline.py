@@ -275,13 +275,15 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         (:mod:`nrsfm.ablation`); they override the method's preset.
     shape_options : dict, optional
         Fields of the solver's settings (:class:`nrsfm.settings.BilinearSettings`,
-        :class:`~nrsfm.settings.AdmmSettings`, :class:`~nrsfm.settings.ClosedFormSettings`).
-    shape_solver : {"bilinear", "admm", "closed_form"}
+        :class:`~nrsfm.settings.AdmmSettings`, :class:`~nrsfm.settings.ClosedFormSettings`,
+        :class:`~nrsfm.settings.ConstrainedSettings`).
+    shape_solver : {"bilinear", "admm", "closed_form", "constrained"}
         ``bilinear`` (default): the factored weighted nuclear norm minimised to a
         stationary point (:mod:`nrsfm.stages.shape.bilinear`); ``admm``: the paper's
         continuation ADMM (:mod:`nrsfm.stages.shape.admm`); ``closed_form``: the exact
-        rank-K solution (no prior). See ``docs/shape_stage.md`` for the measurements
-        behind the default.
+        rank-K solution (no prior); ``constrained``: the prior's norm with W fitted to
+        within its noise (:mod:`nrsfm.stages.shape.constrained`, ``docs/shape_constrained.md``).
+        See ``docs/shape_stage.md`` for the measurements behind the default.
     progress : bool or callable
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None

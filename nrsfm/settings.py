@@ -10,8 +10,9 @@ solver that uses it:
   :class:`RotationAblationSettings` adds the research variants run by
   :mod:`nrsfm.ablation`.
 * :class:`ShapeSettings`: the prior and one solver settings object,
-  :class:`AdmmSettings`, :class:`BilinearSettings`, :class:`ClosedFormSettings` or
-  :class:`PseudoInverseSettings` (the solvers are registered in :mod:`nrsfm.stages.shape`).
+  :class:`AdmmSettings`, :class:`BilinearSettings`, :class:`ClosedFormSettings`,
+  :class:`ConstrainedSettings` or :class:`PseudoInverseSettings` (the solvers are
+  registered in :mod:`nrsfm.stages.shape`).
 * :class:`Settings`: the three together, :func:`method_settings` the presets
   (``organic``, ``bmm``, ``wnn``, ``pseudo_inverse``) with dict options converted.
 """
@@ -24,7 +25,8 @@ from typing import ClassVar, Optional
 
 from .validation import check_integer, check_positive
 
-__all__ = ["AdmmSettings", "BilinearSettings", "ClosedFormSettings", "METHODS",
+__all__ = ["AdmmSettings", "BilinearSettings", "ClosedFormSettings", "ConstrainedSettings",
+           "METHODS",
            "MeasurementSettings", "PRIORS", "PseudoInverseSettings",
            "RotationAblationSettings", "RotationSettings", "Settings", "ShapeSettings",
            "SolverSettings", "method_settings", "rotation_settings"]
@@ -398,6 +400,59 @@ class PseudoInverseSettings(SolverSettings):
     """Rank-K truncation of ``pinv(R) W`` (paper Table 1; no options)."""
 
     name: ClassVar[str] = "pseudo_inverse"
+
+
+@dataclass(frozen=True)
+class ConstrainedSettings(SolverSettings):
+    """Organic norm, W fitted to within its noise (:mod:`nrsfm.stages.shape.constrained`).
+
+    Attributes
+    ----------
+    eps : float or None
+        Residual bound ``||W - R X||_F <= eps`` in W's units (default: the noise norm of W,
+        :func:`nrsfm.stages.shape.constrained.residual_bound`).
+    rho0, lam, rho_max : float
+        Initial ADMM penalty (times ``1 / sigma_1(X_init#)``), its growth per iteration
+        (> 1), its cap.
+    tol : float
+        Stop the ADMM when ``||Y - X#||_F < tol sigma_1(X_init#)``.
+    max_iter : int
+        Cap on ADMM iterations.
+    polish : bool
+        Polish the ADMM's end point into a KKT point of the constrained problem.
+    gtol, rtol : float
+        The polish's tolerances: relative gradient norm and ``|log(residual / eps)|``.
+    polish_max_iter : int
+        Cap on the polish's L-BFGS iterations.
+    rank : int or None
+        Factor rank of the polish (default: the larger of 3K and the ADMM point's rank).
+    """
+
+    name: ClassVar[str] = "constrained"
+    eps: Optional[float] = None
+    rho0: float = 1.0
+    lam: float = 1.1
+    rho_max: float = 1e10
+    tol: float = 1e-8
+    max_iter: int = 1000
+    polish: bool = True
+    gtol: float = 1e-8
+    rtol: float = 1e-5
+    polish_max_iter: int = 20000
+    rank: Optional[int] = None
+
+    def __post_init__(self):
+        if self.eps is not None:
+            check_positive("eps", self.eps, strict=False)
+        for name in ("rho0", "rho_max", "tol", "gtol", "rtol"):
+            check_positive(name, getattr(self, name))
+        if not self.lam > 1:
+            raise ValueError(f"lam must be > 1 (rho grows each iteration); got {self.lam!r}")
+        check_integer(self.max_iter, "max_iter", minimum=1)
+        check_integer(self.polish_max_iter, "polish_max_iter", minimum=1)
+        _flag("polish", self.polish)
+        if self.rank is not None:
+            check_integer(self.rank, "rank", minimum=1)
 
 
 @dataclass(frozen=True)

@@ -355,3 +355,13 @@ def test_core_does_not_import_data_tools():
         if re.search(r"^\s*(import data_tools|from data_tools\b)", path.read_text(), re.M):
             offenders.append(str(rel))
     assert offenders == []
+
+
+def test_run_with_the_constrained_shape_solver(tmp_path, good, seq):
+    out = tmp_path / "constrained.npz"
+    assert main(["run", str(good), "-o", str(out), "--shape-solver", "constrained",
+                 "--given-rotations", "--quiet"]) == 0
+    with np.load(out) as z:
+        assert z["shapes"].shape == seq.shapes.shape
+        assert float(z["e3d"]) < 1e-6                    # noise-free, true cameras
+        assert "shape_cost" in z.files

@@ -20,7 +20,8 @@ def add_common_options(p, rrd_name="NAME.rrd"):
                    help="pipeline to run (default: organic)")
     p.add_argument("--shape-solver", choices=SHAPE_SOLVERS, default="bilinear",
                    help="shape-stage solver (default: bilinear; admm: the paper's "
-                        "continuation ADMM; closed_form: exact rank-K, no prior)")
+                        "continuation ADMM; closed_form: exact rank-K, no prior; "
+                        "constrained: W fitted to within its noise)")
     p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
     add_rrd_option(p, rrd_name)
     p.add_argument("--quiet", action="store_true", help="no progress messages")

@@ -9,6 +9,8 @@ Solvers (one module each, registered in :data:`SOLVERS`):
   to a verified stationary point;
 * ``admm`` (:mod:`.admm`): the paper's continuation ADMM;
 * ``closed_form`` (:mod:`.bilinear`): the exact rank-K solution, no prior;
+* ``constrained`` (:mod:`.constrained`, optional): the organic norm with W fitted to within
+  its noise (exact on rank-K and rank-deficient data; worse under noise and slower);
 * ``pseudo_inverse`` (:mod:`.pseudo_inverse`): rank-K truncation of ``pinv(R) W``.
 
 A new solver is one module with a ``solve(W, R, K, prior, settings, progress)`` function,
@@ -21,11 +23,12 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 from ...settings import (AdmmSettings, BilinearSettings, ClosedFormSettings,
-                         PseudoInverseSettings, ShapeSettings)
+                         ConstrainedSettings, PseudoInverseSettings, ShapeSettings)
 from .admm import solve_admm
 from .bilinear import solve_bilinear, solve_closed_form
 from .common import (ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
                      truncate_rank)
+from .constrained import solve_constrained
 from .pseudo_inverse import solve_pseudo_inverse
 
 __all__ = ["SHAPE_SOLVERS", "SOLVERS", "ShapeResult", "Solver", "phi", "phi_inv",
@@ -45,11 +48,12 @@ SOLVERS = {
     "admm": Solver(AdmmSettings, solve_admm),
     "bilinear": Solver(BilinearSettings, solve_bilinear),
     "closed_form": Solver(ClosedFormSettings, solve_closed_form),
+    "constrained": Solver(ConstrainedSettings, solve_constrained),
     "pseudo_inverse": Solver(PseudoInverseSettings, solve_pseudo_inverse),
 }
 
 #: the solvers ``reconstruct(shape_solver=...)`` offers with a prior-based method
-SHAPE_SOLVERS = ("admm", "bilinear", "closed_form")
+SHAPE_SOLVERS = ("admm", "bilinear", "closed_form", "constrained")
 
 
 def solve_shape(W, R, K, settings=None, progress=None):

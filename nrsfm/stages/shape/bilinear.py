@@ -50,8 +50,9 @@ from ...noise import noise_from_singular_values
 from ...settings import PRIORS, BilinearSettings, ClosedFormSettings
 from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["bilinear_weights", "closed_form_coefficients", "closed_form_result",
-           "closed_form_shapes", "optimize_shapes_bilinear", "solve_bilinear",
+__all__ = ["balance_factors", "bilinear_weights", "c_step", "closed_form_coefficients",
+           "closed_form_fit", "closed_form_result", "closed_form_shapes",
+           "frame_preconditioner", "optimize_shapes_bilinear", "solve_bilinear",
            "solve_closed_form"]
 
 #: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
@@ -141,12 +142,37 @@ def closed_form_shapes(W, R, K):
     X : (F, 3, P) ndarray
     """
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
-    B, _ = closed_form_coefficients(W, Rf, K)
+    return closed_form_fit(W, Rf, K)[0]
+
+
+def closed_form_fit(W, Rf, K):
+    """:func:`closed_form_shapes` on checked inputs, with the nullspace gap.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements, not zero.
+    Rf : (F, 2, 3) ndarray
+        Orthonormal camera rows.
+    K : int
+        Checked number of shape bases (``3K <= min(2F, P)``).
+
+    Returns
+    -------
+    X : (F, 3, P) ndarray
+    gap : float
+        The closed form's (K+1)-th smallest eigenvalue relative to its largest: above
+        :data:`NULLSPACE_GAP_MIN` when the rank-K fit is unique, at rounding level when it
+        is not (then X is one member chosen by rounding).
+    """
+    F, P = W.shape[0] // 2, W.shape[1]
+    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
+    B, ev = _nullspace_coefficients(U, s, Rf, K)
     B = B / np.linalg.norm(B, axis=0)
     Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
     Pi = Rf.transpose(0, 2, 1) @ Rf
-    C = _c_step(B, Pi, Xi, np.zeros(K))
-    return (B @ C.T).reshape(F, 3, P)
+    C = c_step(B, Pi, Xi, np.zeros(K))
+    return (B @ C.T).reshape(F, 3, P), float(ev[K])
 
 
 # --------------------------------------------------------------------------------------
@@ -182,7 +208,7 @@ def _singular_values(A):
     return np.sqrt(np.maximum(ev, 0.0))
 
 
-def _c_step(B, Pi, Xi, reg):
+def c_step(B, Pi, Xi, reg):
     """argmin_C E(B, C): one (3r x 3r) system shared by all points.
 
     For point p with unknowns c_p = [C_i(:, p)]_i (3r), the data term is
@@ -225,7 +251,7 @@ def _objective(B, C, Pi, Xi, w2, reg):
     return E, data, gB, gC
 
 
-def _frame_preconditioner(C, Pi, reg):
+def frame_preconditioner(C, Pi, reg):
     """L_f^-1 (F, r, r) for H_f = L_f L_f', H_f = d^2 E / dB_f^2 at fixed C (the B-step
     normal matrix: ``H_f[i, j] = <C_i, (I_P kron R_f'R_f) C_j> + reg_i delta_ij``)."""
     r = C.shape[1]
@@ -240,7 +266,7 @@ def _frame_preconditioner(C, Pi, reg):
     return np.linalg.inv(L)
 
 
-def _balance(B, C):
+def balance_factors(B, C):
     """Rescale B_i, C_i to equal norms (X# unchanged, regulariser not increased)."""
     bn = np.linalg.norm(B, axis=0)
     cn = np.linalg.norm(C, axis=0)
@@ -312,7 +338,7 @@ class _Objective:
         self.hist = {"cost": [], "data_term": [], "grad_norm": []}
 
     def c_step(self, B):
-        return _c_step(B, self.Pi, self.Xi, self.reg)
+        return c_step(B, self.Pi, self.Xi, self.reg)
 
     def values(self, B, C):
         return _objective(B, C, self.Pi, self.Xi, self.w2, self.reg)
@@ -381,7 +407,7 @@ def _bilinear(W, R, K, prior, st, progress):
         U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
         B0 = U[:, :r] * np.sqrt(sv[:r])
     B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
-    B, C = _balance(B0, obj.c_step(B0))
+    B, C = balance_factors(B0, obj.c_step(B0))
     B, C, n_iter = _minimise(B, C, obj, st.gtol, st.max_iter, F, r)
     E, data, rel = obj.measure(B, C)
     res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
@@ -418,7 +444,7 @@ def _minimise(B, C, obj, gtol, max_iter, F, r):
     n_iter = 0
     state = {"B": B}
     while rel > gtol and n_iter < max_iter:
-        Linv = _frame_preconditioner(C, obj.Pi, obj.reg)      # (F, r, r), L_f^-1
+        Linv = frame_preconditioner(C, obj.Pi, obj.reg)      # (F, r, r), L_f^-1
 
         def to_B(z):
             return np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
@@ -454,10 +480,10 @@ def _minimise(B, C, obj, gtol, max_iter, F, r):
             B = to_B(out.x)
         except _Done:
             B = state["B"]
-        B, C = _balance(B, obj.c_step(B))
+        B, C = balance_factors(B, obj.c_step(B))
         C = obj.c_step(B)
         rel = obj.measure(B, C)[2]
         if n_iter == n_before:                  # no progress possible (rounding level)
             break
-    B, C = _balance(B, C)
+    B, C = balance_factors(B, C)
     return B, C, n_iter

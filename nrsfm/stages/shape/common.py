@@ -95,13 +95,17 @@ class ShapeResult:
         The solver's objective at the end.
     optimality : float
         The solver's measure of optimality at the end: the ADMM's residual
-        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm; 0 for the
+        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm, the constrained
+        solver's relative ADMM gap (its KKT certificate is in ``params["kkt"]``); 0 for the
         closed-form solutions.
     params : dict
-        Every constant used.
+        Every constant used, and solver-specific results (the constrained solver's ``eps``,
+        ``residual``, ``chosen``, ``certified``, ``kkt``).
     weights, mu, noise, B, C, wnn_objective : optional
         The bilinear solver's dimensionless weights ``a``, balance ``mu`` and the noise
-        level it came from, its factors and its weighted-nuclear-norm objective.
+        level it came from, its factors and its weighted-nuclear-norm objective (the
+        constrained solver: its weights, the inverse KKT multiplier, the noise level
+        eps / sqrt(2FP) and the weighted norm at its feasible end point).
     """
 
     shapes: np.ndarray
