@@ -24,16 +24,14 @@ import time
 import numpy as np
 
 from .ablation_family import combine_family, combine_triplets, triplet_family
-from .geometry import average_rotations, project_to_so3
+from .geometry import project_to_so3
 from .settings import RotationAblationSettings, RotationSettings
 from .stages.corrective import (CorrectiveResult, _normalise_triplet, constraint_matrix,
                                 corrective_triplets, gram_from_vech, penalized_gram,
                                 refine_triplet, triplet_cost, triplets_from_gram)
-from .stages.rotation_select import in_determined_subspace, lift_result
-from .stages.rotations import (MIN_WINDOW_FRAMES, _say, average_samples, check_motion,
-                               record_search, rotations_from_triplet_set,
-                               rotations_from_triplets, sample_weights, triplets_on_subsets,
-                               window_weights)
+from .stages.rotations import (MIN_WINDOW_FRAMES, average_samples, record_search,
+                               rotations_from_triplets, run_rotation_stage, sample_weights,
+                               triplets_on_subsets, window_weights)
 
 __all__ = ["STRATEGIES", "chordal_mean", "combine_family", "corrective_triplets_from",
            "estimate_rotations_ablation", "relaxed_gram", "row_space_residual",
@@ -83,17 +81,11 @@ def estimate_rotations_ablation(M_hat, K, settings=None, seed=0, progress=None):
         if not isinstance(settings, RotationSettings):
             raise ValueError(f"settings must be RotationSettings; got {settings!r}")
         settings = RotationAblationSettings(**dataclasses.asdict(settings))
-    say, timings = _say(progress), {}
-    M, k, sub, info = in_determined_subspace(check_motion(M_hat, K), K, settings.determined,
-                                             say)
-    t0 = time.perf_counter()
-    G = _ablation_triplets(M, k, settings, seed, info, say)
-    timings["triplets"] = time.perf_counter() - t0
-    return lift_result(rotations_from_triplet_set(
-        M, k, G, settings, info=info, timings=timings, say=say, seed=seed,
+    return run_rotation_stage(
+        M_hat, K, settings, seed, progress, _ablation_triplets,
         weigh=_gated_weights, average=_average, metric=settings.filter_metric,
         refit=_refit if settings.refit else None,
-        combine=combine_triplets if settings.combine == "family" else None), sub, K)
+        combine=combine_triplets if settings.combine == "family" else None)
 
 
 def _ablation_triplets(M, K, s, seed, info, say):
@@ -353,7 +345,7 @@ def _admm_nuclear(N, psd, max_iter, tol, rho):
     U = np.zeros((n, n))
     status = "max_iter"
     it = 0
-    rn = sn = np.inf
+    rn = np.inf
     for it in range(max_iter):
         y = Hinv @ (A.T @ (Z - U).ravel())
         x = y - ((one @ y - 1.0) / s1) * Hinv1
@@ -367,7 +359,6 @@ def _admm_nuclear(N, psd, max_iter, tol, rho):
         r = Qx - Z
         U = U + r
         rn = np.linalg.norm(r)
-        sn = rho * np.linalg.norm(Z - Z_old)
         scale = max(np.linalg.norm(Z), 1e-12)
         if rn < tol * scale and np.linalg.norm(Z - Z_old) < tol * scale and it > 10:
             status = "converged"

@@ -495,15 +495,23 @@ def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
             not isinstance(settings, RotationSettings):
         raise ValueError("estimate_rotations runs RotationSettings (organic, bmm); research "
                          "settings run through nrsfm.ablation.estimate_rotations_ablation")
+    return run_rotation_stage(M_hat, K, settings, seed, progress, production_triplets)
+
+
+def run_rotation_stage(M_hat, K, settings, seed, progress, find_triplets, **steps):
+    """The stage's common frame: work in the determined subspace of M_hat (rank < 3K
+    handled), find the triplets with ``find_triplets(M, k, settings, seed, info, say)``,
+    then rotations, registration, filtering and averaging
+    (:func:`rotations_from_triplet_set` with the optional ``steps``), lifted back."""
     say, timings = _say(progress), {}
     M, k, sub, info = in_determined_subspace(check_motion(M_hat, K), K, settings.determined,
                                              say)
     t0 = time.perf_counter()
-    G = production_triplets(M, k, settings, seed, info, say)
+    G = find_triplets(M, k, settings, seed, info, say)
     timings["triplets"] = time.perf_counter() - t0
     return lift_result(rotations_from_triplet_set(M, k, G, settings, info=info,
-                                                  timings=timings, say=say, seed=seed),
-                       sub, K)
+                                                  timings=timings, say=say, seed=seed,
+                                                  **steps), sub, K)
 
 
 def _fill_empty(R, empty):
