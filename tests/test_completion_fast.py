@@ -159,7 +159,7 @@ def test_lags_rule_and_completion_setting_through_reconstruct():
         assert r.completion.lags == (0,) and r.params["settings"].measurement.completion == name
     assert type(res["factorisation"].completion).__name__ == "FastCompletion"
     assert type(res["soft_impute"].completion).__name__ == "CompletionResult"
-    auto = nrsfm.reconstruct(Wm, 1)                            # default: factorisation
+    auto = nrsfm.reconstruct(Wm, 1)               # default auto: no lags -> factorisation
     assert auto.completion.lags == choose_lags(auto.observed, 3)
     np.testing.assert_allclose(auto.shapes, res["factorisation"].shapes)
 
@@ -176,3 +176,21 @@ def test_reconstruction_reports_the_undetermined_tracks():
     assert "1 of 40 tracks undetermined" in r.summary()
     full = nrsfm.reconstruct(seq.W, 1)
     assert full.fill_gain is None and not full.undetermined.any()
+
+
+def test_auto_completion_follows_the_lags_rule():
+    """``completion="auto"``: soft-impute where the lags rule asks for lags (few points per
+    frame for the rank), the factorisation elsewhere."""
+    import data_tools as dt
+    import nrsfm
+
+    small = dt.make_synthetic(F=40, P=12, K=3, seed=2)           # 12 points, rank 9: lags
+    Wm, _ = dt.drop_tracks(small.W, 0.2, seed=1, pattern="uniform")
+    res = nrsfm.reconstruct(Wm, 3)
+    assert res.completion.lags == (-1, 0, 1)
+    assert type(res.completion).__name__ == "CompletionResult"
+    wide = dt.make_synthetic(F=40, P=60, K=1, seed=2)            # 60 points, rank 3: no lags
+    Wm, _ = dt.drop_tracks(wide.W, 0.2, seed=1, pattern="uniform")
+    res = nrsfm.reconstruct(Wm, 1)
+    assert res.completion.lags == (0,)
+    assert type(res.completion).__name__ == "FastCompletion"

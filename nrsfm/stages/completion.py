@@ -192,7 +192,7 @@ def complete(W, K, settings):
     K : int
         Rank of the completion: 3K (Eq. 1).
     settings : nrsfm.settings.MeasurementSettings
-        ``completion`` (``factorisation`` or ``soft_impute``) and ``lags``.
+        ``completion`` (``auto``, ``factorisation`` or ``soft_impute``) and ``lags``.
 
     Returns
     -------
@@ -202,7 +202,10 @@ def complete(W, K, settings):
     observed = observed_mask(W)
     lags = (choose_lags(observed, 3 * K) if settings.lags == "auto"
             else tuple(settings.lags))
-    if settings.completion == "soft_impute":
+    method = settings.completion
+    if method == "auto":                  # the full SVD is cheap exactly where lags are due
+        method = "soft_impute" if len(lags) > 1 else "factorisation"
+    if method == "soft_impute":
         return complete_measurements(W, observed, lags=lags)
     from .completion_fast import complete_low_rank
 
