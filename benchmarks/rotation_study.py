@@ -52,8 +52,8 @@ def run(names, strategies, data=None, shape=True, seed=0, options=None, say=prin
         e3d_repeats=1, perturbation=1e-4):
     import data_tools
     import nrsfm
-    from nrsfm.ablation import estimate_rotations_ablation
-    from nrsfm.settings import rotation_settings
+    from nrsfm.research import rotation_settings
+    from nrsfm.research.rotations import estimate_rotations_ablation
 
     rows = []
     for name in names:

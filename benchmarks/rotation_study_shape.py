@@ -1,9 +1,9 @@
 """Rotations that serve the shape (issue 18): e_R and e3d (default shape solver) of the
 single best triplet (``bmm``), the paper's L1 average (``organic``), the average with the
-family combination (``family``, :mod:`nrsfm.ablation`) and the averaged rotations
+family combination (``family``, :mod:`nrsfm.research`) and the averaged rotations
 projected back onto one triplet of the rank-3K factorisation (``refit``); each with the
 rotation stage's own rotations (no shape selection). ``rowsp``: how far the rotations are
-from the cameras of one triplet (:func:`nrsfm.ablation.row_space_residual`, relative;
+from the cameras of one triplet (:func:`nrsfm.research.rotations.row_space_residual`, relative;
 0 = consistent with W's row space).
 
 Example::
@@ -26,19 +26,24 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 VARIANTS = {
     "bmm": ("bmm", {}),
     "organic": ("organic", {}),
-    "family": ("organic", dict(strategy="family")),
+    "family": ("family", {}),
     "refit": ("organic", dict(refit=True)),
 }
 
 
 def stage_rotations_only(method="organic", **rotation_options):
-    """Typed settings of a method with the shape solved for the rotation stage's own
-    rotations (``ShapeSettings.select_rotations=False``)."""
+    """Typed settings of a method (or of the research strategy ``family``) with the shape
+    solved for the rotation stage's own rotations (``ShapeSettings.select_rotations=False``)."""
     import dataclasses
 
-    from nrsfm.settings import method_settings
+    from nrsfm.research import research_settings
+    from nrsfm.settings import RotationSettings, method_settings
 
-    s = method_settings(method, rotation_options=rotation_options)
+    production = {f.name for f in dataclasses.fields(RotationSettings)}
+    if method in RotationSettings.STRATEGIES and set(rotation_options) <= production:
+        s = method_settings(method, rotation_options=rotation_options)
+    else:
+        s = research_settings(method, **rotation_options)
     return dataclasses.replace(s, shape=dataclasses.replace(s.shape,
                                                             select_rotations=False))
 
@@ -47,7 +52,7 @@ def run(names, data, variants=tuple(VARIANTS), say=print):
     import data_tools
     import nrsfm
     from nrsfm.metrics import e3d, rotation_error
-    from nrsfm.ablation import row_space_residual
+    from nrsfm.research.rotations import row_space_residual
 
     warnings.simplefilter("ignore")
     say(f"{'sequence':9s} " + " ".join(f"{v + ' e_R':>13s} {v + ' e3d':>13s} {'rowsp':>8s} {'s':>5s}"

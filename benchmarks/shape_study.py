@@ -49,7 +49,7 @@ from nrsfm.metrics import e3d, rotation_error
 from nrsfm.published import published_value
 from nrsfm.stages.shape.admm import normalization_scale
 from nrsfm.stages.shape import solve_shapes
-from nrsfm.stages.shape.admm import optimize_shapes
+from nrsfm.stages.shape.admm import AdmmSettings, admm_iterations
 from nrsfm.stages.shape.bilinear import closed_form_shapes
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
@@ -221,7 +221,7 @@ def section_admm_scale(seqs):
     for name in AKHTER4:
         seq = seqs[name]
         s = normalization_scale(seq.W)
-        vals = [e3d(optimize_shapes(seq.W / (m * s), seq.rotations, seq.K).shapes, seq.shapes)
+        vals = [e3d(admm_iterations(seq.W / (m * s), seq.rotations, seq.K, "organic", AdmmSettings()).shapes, seq.shapes)
                 for m in ms]
         print(f"{name:8s} " + " ".join(f"{v:8.4f}" for v in vals), flush=True)
 
@@ -263,7 +263,7 @@ def _perturb_table(seqs, degs, kind, fn, seeds):
             e, er = [], []
             for seed in runs:
                 R = fn(seq.rotations, g, seed)
-                e.append(e3d(optimize_shapes(seq.W / s, R, seq.K).shapes, seq.shapes))
+                e.append(e3d(admm_iterations(seq.W / s, R, seq.K, "organic", AdmmSettings()).shapes, seq.shapes))
                 er.append(rotation_error(R, seq.rotations))
             e_vals.append(np.mean(e))
             r_vals.append(np.mean(er))

@@ -30,14 +30,19 @@ from threadpoolctl import threadpool_limits
 import data_tools as dt
 import nrsfm
 from nrsfm.metrics import e3d
-from nrsfm.stages.shape import constrained as of
+from nrsfm.stages.shape.constrained import ConstrainedSettings, organic_fit
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
 
 
+def _fit(W, R, K, **kw):
+    """The constrained solver's result, its settings as keywords."""
+    return organic_fit(W, R, K, ConstrainedSettings(**kw))
+
+
 def new_shapes(W, R, K, **kw):
     """Shapes of the new solver (W in any units; the solver is scale-free)."""
-    return of.organic_fit_shapes(W, R, K, **kw).shapes
+    return _fit(W, R, K, **kw).shapes
 
 
 def old_shapes(W, R, K, solver):
@@ -79,7 +84,7 @@ def section_gt(seqs):
             rec = nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations, shape_solver=solver)
             cells.append(f"{e3d(rec.shapes, seq.shapes):.4f} ({rec.timings['shape']:5.2f})")
         for polish in (False, True):
-            res, secs = _timed(lambda: of.organic_fit_shapes(seq.W, seq.rotations, seq.K,
+            res, secs = _timed(lambda: _fit(seq.W, seq.rotations, seq.K,
                                                              polish=polish))
             cells.append(f"{e3d(res.shapes, seq.shapes):.4f} ({secs:5.2f})")
         k = res.kkt
@@ -230,7 +235,7 @@ def section_flat(seqs, name="drink", draws=4):
             W = seq.W
             if d:
                 W = W + 1e-7 * rms * np.random.default_rng(d).standard_normal(W.shape)
-            res = of.organic_fit_shapes(W, seq.rotations, seq.K, lam=lam)
+            res = _fit(W, seq.rotations, seq.K, lam=lam)
             e.append(e3d(res.shapes, seq.shapes))
             o.append(res.objective / np.linalg.norm(W))
         print(f"lam {lam}: e3d " + " ".join(f"{v:.4f}" for v in e) + " | objective "
@@ -278,7 +283,7 @@ def section_noise_kkt(seqs, sigma=0.10, seeds=2):
             vals["default"].append(e3d(rec.shapes, seq.shapes))
             secs["default"] += rec.timings["shape"]
             for key, polish in (("end point", False), ("KKT", True)):
-                res, t = _timed(lambda: of.organic_fit_shapes(rec.W, rec.rotations, seq.K,
+                res, t = _timed(lambda: _fit(rec.W, rec.rotations, seq.K,
                                                               polish=polish))
                 vals[key].append(e3d(res.shapes, seq.shapes))
                 secs[key] += t
@@ -298,7 +303,7 @@ def section_drink_kkt(mocap, draws=1, gtols=(1e-8, 1e-10)):
             W = seq.W
             if d:
                 W = W + 1e-7 * rms * np.random.default_rng(d).standard_normal(W.shape)
-            res = of.organic_fit_shapes(W, R, seq.K, gtol=gtol, polish_max_iter=8000)
+            res = _fit(W, R, seq.K, gtol=gtol, polish_max_iter=8000)
             k, nw = res.kkt, np.linalg.norm(W)
             print(f"gtol {gtol:.0e} draw {d}: objective {res.objective / nw:.5f} (end point "
                   f"{res.candidate_objectives['admm'] / nw:.5f}), e3d "
@@ -311,7 +316,7 @@ def section_dense():
     print("\n== dense: K = 1, F = 100, P = 30,000, 1 % noise, ground-truth rotations: shape "
           "stage alone ==")
     seq = dt.make_synthetic(F=100, P=30000, K=1, motion="smooth", noise=0.01, seed=0)
-    res, secs = _timed(lambda: of.organic_fit_shapes(seq.W, seq.rotations, 1))
+    res, secs = _timed(lambda: _fit(seq.W, seq.rotations, 1))
     print(f"organic_fit {secs:.2f} s, {res.n_iter} iterations, e3d "
           f"{e3d(res.shapes, seq.shapes):.4f}, chosen {res.chosen}", flush=True)
 

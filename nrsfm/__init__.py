@@ -8,12 +8,13 @@ from .diagnostics import NRSfMWarning
 from .metrics import e3d, e3d_akhter, rotation_error
 from .pipeline import Reconstruction, reconstruct
 from .settings import (METHODS, AdmmSettings, BilinearSettings, ClosedFormSettings,
-                       MeasurementSettings, PseudoInverseSettings, RotationSettings, Settings,
-                       ShapeSettings, method_settings)
+                       ConstrainedSettings, MeasurementSettings, PseudoInverseSettings,
+                       RotationSettings, Settings, ShapeSettings, method_settings)
 
 __version__ = "0.1.0"
 
 __all__ = ["METHODS", "AdmmSettings", "BilinearSettings", "ClosedFormSettings",
-           "MeasurementSettings", "NRSfMWarning", "PseudoInverseSettings", "Reconstruction",
-           "RotationSettings", "Settings", "ShapeSettings", "e3d", "e3d_akhter",
-           "method_settings", "reconstruct", "rotation_error", "__version__"]
+           "ConstrainedSettings", "MeasurementSettings", "NRSfMWarning",
+           "PseudoInverseSettings", "Reconstruction", "RotationSettings", "Settings",
+           "ShapeSettings", "e3d", "e3d_akhter", "method_settings", "reconstruct",
+           "rotation_error", "__version__"]

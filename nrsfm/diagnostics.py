@@ -34,11 +34,11 @@ Signals (name: meaning; flagged when)
   ``CAMERA_SPREAD_MIN_DEG`` (a nearly static camera: depth is not observed).
 * ``depth_sensitivity``: how much the shapes move per unit of rotation change between
   the stage's averaged rotations and its best single triplet's (both are solved by the
-  shape stage, :func:`nrsfm.stages.rotation_select.depth_sensitivity`); flagged above
+  shape stage, :func:`nrsfm.stages.selection.depth_sensitivity`); flagged above
   ``DEPTH_SENSITIVITY_MAX`` (the camera motion does not determine the depth of the
   deformation: a limit of the method, not a failed search).
 * ``triplet_cost_ratio`` above ``COST_RATIO_MAX`` is a flag only when other random starts
-  reach a lower cost (a failed search, :func:`nrsfm.stages.rotation_select.lower_minimum`);
+  reach a lower cost (a failed search, :func:`nrsfm.stages.rotations.subspace.lower_minimum`);
   otherwise a note (the rank-3K model does not fit W exactly, as with real shapes).
 * ``looks_transposed``: Dai's cost per frame of W is much higher than that of ``W'``
   read as measurements (only computed when the cost ratio is flagged and ``W'`` has an
@@ -53,14 +53,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .noise import noise_from_singular_values
-from .stages.rotation_select import DETERMINED_RTOL, lower_minimum
+from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum
 
 __all__ = ["NRSfMWarning", "Diagnostics", "THRESHOLDS", "RANK_RTOL", "RANK_GAP_MIN",
            "CONDITION_MAX", "COST_RATIO_MAX", "CAMERA_SPREAD_MIN_DEG", "KEPT_MIN", "SIGN_FRACTION_MAX",
            "predicted_triplet_cost", "numerical_rank", "diagnose"]
 
 #: singular values below ``RANK_RTOL * s_1`` count as zero (the rotation stage's tolerance
-#: for the determined subspace, :mod:`nrsfm.stages.rotation_select`)
+#: for the determined subspace, :mod:`nrsfm.stages.rotations.subspace`)
 RANK_RTOL = DETERMINED_RTOL
 #: smallest acceptable ``s_3K / s_3K+1``
 RANK_GAP_MIN = 1.02
@@ -74,7 +74,7 @@ KEPT_MIN = 0.5
 SIGN_FRACTION_MAX = 0.10
 
 #: largest acceptable ratio of the shapes' change to the rotations' change between the
-#: two rotation estimates (``nrsfm.stages.rotation_select.depth_sensitivity``)
+#: two rotation estimates (``nrsfm.stages.selection.depth_sensitivity``)
 DEPTH_SENSITIVITY_MAX = 1.0
 #: ... when the shapes themselves change by more than this (e3d between the two shape sets;
 #: below it both rotation estimates are exact to the solvers' precision)

@@ -9,6 +9,7 @@ its typed settings (:mod:`nrsfm.settings`):
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import warnings
@@ -18,16 +19,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .diagnostics import diagnose
-from .settings import METHODS, RotationAblationSettings, Settings, method_settings
+from .settings import METHODS, Settings, method_settings
 from .stages.measurement import Factorization, measure
-from .stages.rotations import estimate_rotations
-from .stages.rotation_select import (depth_sensitivity, rotation_candidates,
-                                     select_by_shape_objective)
-from .stages.shape import ShapeResult, solve_shape
+from .stages.selection import shape_for_rotations
+from .stages.shape import ShapeResult
 from .validation import (blas_threads, check_K, check_measurements, check_rotations,
                          power_of_two_scale)
 
-__all__ = ["METHODS", "Reconstruction", "reconstruct", "run_rotation_stage"]
+__all__ = ["METHODS", "Reconstruction", "reconstruct"]
 
 
 @dataclass
@@ -209,46 +208,14 @@ def _timed(timings, name):
     timings[name] = time.perf_counter() - t0
 
 
-def run_rotation_stage(M_hat, K, settings, seed=0, progress=None):
-    """The rotation stage for production settings (:mod:`nrsfm.stages.rotations`) or
-    research settings (:func:`nrsfm.ablation.estimate_rotations_ablation`)."""
-    if isinstance(settings, RotationAblationSettings):
-        from .ablation import estimate_rotations_ablation
-
-        return estimate_rotations_ablation(M_hat, K, settings, seed, progress)
-    return estimate_rotations(M_hat, K, settings, seed, progress)
+#: reconstruct's keywords that ``settings=`` replaces, with their defaults
+_SETTINGS_KEYWORDS = dict(method="organic", shape_solver="bilinear", missing="complete",
+                          rotation_options=None, shape_options=None)
 
 
-def shape_for_rotations(Wn, rotations, K, rotation_stage, settings, say):
-    """The shape stage; with ``settings.select_rotations`` and a rotation stage that ran,
-    solved for the stage's rotations and its best single triplet's, keeping the lower
-    shape objective (:mod:`nrsfm.stages.rotation_select`; recorded in
-    ``rotation_stage.info["shape_selection"]``).
-
-    Returns
-    -------
-    rotations : (F, 3, 3) ndarray
-        The rotations the shapes were solved with.
-    shape_stage : ShapeResult
-    """
-    if rotation_stage is None or not settings.select_rotations:
-        return rotations, solve_shape(Wn, rotations, K, settings, say)
-    cands = rotation_candidates(rotation_stage)
-    pick, results, objectives = select_by_shape_objective(
-        cands, lambda R: solve_shape(Wn, R, K, settings, say))
-    names = [name for name, _ in cands]
-    rotation_stage.info["shape_selection"] = dict(
-        candidates=names, objectives=objectives, chosen=names[pick],
-        depth=depth_sensitivity(cands, results))
-    say(f"rotations for the shape: {names[pick]} (objectives " + ", ".join(
-        f"{n} {v:.6g}" if v is not None else f"{n} -" for n, v in zip(names, objectives))
-        + ")")
-    return cands[pick][1], results[pick]
-
-
-def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, shape_solver="bilinear", progress=False,
-                blas_thread_limit=1, missing="complete", settings=None):
+def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=None,
+                shape_options=None, shape_solver=None, progress=False,
+                blas_thread_limit=1, missing=None, settings=None):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     Parameters
@@ -258,7 +225,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         centred here (per-frame translation is removed).
     K : int
         Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P - 1)``.
-    method : {"organic", "bmm", "wnn", "pseudo_inverse"}
+    method : {"organic", "bmm", "wnn", "pseudo_inverse"}, optional
         ``organic`` (default): all K corrective triplets, registered, filtered and
         L1-averaged rotations; shape by the partial-sum weighted nuclear norm (N = 1),
         minimised by ``shape_solver``.
@@ -270,15 +237,15 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     seed : int
         Seed for every random choice (results are deterministic for a given seed).
     rotation_options : dict, optional
-        Fields of :class:`nrsfm.settings.RotationSettings` (``strategy`` included), or of
-        :class:`nrsfm.settings.RotationAblationSettings` for the research variants
-        (:mod:`nrsfm.ablation`); they override the method's preset.
+        Fields of :class:`nrsfm.settings.RotationSettings` that override the method's
+        preset (not ``strategy``, which the method fixes; research strategies run with
+        ``settings=nrsfm.research.research_settings(...)``).
     shape_options : dict, optional
         Fields of the solver's settings (:class:`nrsfm.settings.BilinearSettings`,
         :class:`~nrsfm.settings.AdmmSettings`, :class:`~nrsfm.settings.ClosedFormSettings`,
         :class:`~nrsfm.settings.ConstrainedSettings`).
-    shape_solver : {"bilinear", "admm", "closed_form", "constrained"}
-        ``bilinear`` (default): the factored weighted nuclear norm minimised to a
+    shape_solver : str, optional
+        A solver registered in :data:`nrsfm.stages.shape.SOLVERS`: ``bilinear`` (default): the factored weighted nuclear norm minimised to a
         stationary point (:mod:`nrsfm.stages.shape.bilinear`); ``admm``: the paper's
         continuation ADMM (:mod:`nrsfm.stages.shape.admm`); ``closed_form``: the exact
         rank-K solution (no prior); ``constrained``: the prior's norm with W fitted to
@@ -297,8 +264,9 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         and run the pipeline on it; the result keeps ``observed``, ``W_completed`` and
         the tracks the data leave ``undetermined``. ``error``: refuse.
     settings : nrsfm.settings.Settings, optional
-        Every setting, typed (replaces ``method``, ``shape_solver``, ``missing`` and the
-        option dicts, which are then not allowed).
+        Every setting, typed. It replaces ``method``, ``shape_solver``, ``missing``,
+        ``rotation_options`` and ``shape_options``: giving any of them beside it is a
+        ValueError (put them into the settings instead).
 
     Returns
     -------
@@ -309,7 +277,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     ValueError
         Bad shapes, non-finite input, K out of range (including 3K above
         ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, solver
-        or option, bad rotations; missing observations with ``missing="error"``; a frame
+        or option, an option beside ``settings=``, bad rotations; missing observations with ``missing="error"``; a frame
         or point with too few observations to be determined (named in the message).
 
     Warns
@@ -317,16 +285,9 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
     nrsfm.NRSfMWarning
         When a quality signal of the run crosses its threshold (``result.diagnostics``).
     """
-    solver_name = shape_solver
-    if settings is None:
-        settings = method_settings(method, shape_solver, rotation_options, shape_options,
-                                   missing)
-    else:
-        solver_name = settings.shape.solver.name
-    if not isinstance(settings, Settings) or (solver_name != shape_solver and
-                                               (rotation_options or shape_options)):
-        raise ValueError("settings must be an nrsfm.settings.Settings, given without "
-                         "rotation_options or shape_options")
+    settings = _settings(settings, method=method, shape_solver=shape_solver,
+                         missing=missing, rotation_options=rotation_options,
+                         shape_options=shape_options)
     # every input check before any computation (the completion can take a while)
     W, K, rotations = _check_inputs(W, K, rotations, settings.measurement.missing)
     say = _progress_printer(progress)
@@ -341,22 +302,14 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         rotation_stage = None
         if rotations is None:
             with _timed(timings, "rotations"):
-                rotation_stage = run_rotation_stage(fact.M_hat, K, settings.rotation, seed,
-                                                    say)
+                rotation_stage = settings.rotation.estimate(fact.M_hat, K, seed, say)
             rotations = rotation_stage.rotations
         with _timed(timings, "shape"):
             rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
                                                          settings.shape, say)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
     diagnostics.warn(stacklevel=2)
-    params = dict(method=settings.method, K=K, seed=seed,
-                  rotation_strategy=settings.rotation.strategy,
-                  shape_prior=METHODS[settings.method][1],
-                  shape_solver=solver_name,
-                  rotation_options=dict(rotation_options or {}),
-                  shape_options=dict(shape_options or {}), scale=meas.scale,
-                  rotations_given=rotation_stage is None,
-                  missing=settings.measurement.missing, settings=settings)
+    params = _params(settings, K, seed, meas.scale, rotations_given=rotation_stage is None)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
         raise ValueError(f"the shapes overflow in the input's units (max|W| = "
@@ -371,6 +324,38 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                           completion=completion,
                           fill_gain=None if completion is None else
                           _fill_gain(fact.M_hat, completion.observed))
+
+
+def _settings(settings, **keywords):
+    """The run's Settings: ``settings`` as given, or built from the keywords (their
+    defaults where None); a keyword beside ``settings`` is refused."""
+    if settings is None:
+        kw = {k: _SETTINGS_KEYWORDS[k] if v is None else v for k, v in keywords.items()}
+        return method_settings(**kw)
+    if not isinstance(settings, Settings):
+        raise ValueError(f"settings must be an nrsfm.settings.Settings; got {settings!r}")
+    beside = sorted(k for k, v in keywords.items() if v is not None)
+    if beside:
+        raise ValueError(f"settings= replaces {', '.join(sorted(_SETTINGS_KEYWORDS))}; got "
+                         f"{', '.join(beside)} beside it, which would be ignored: put them "
+                         f"into the settings (e.g. dataclasses.replace(settings.shape, "
+                         f"solver=...))")
+    return settings
+
+
+def _params(settings, K, seed, scale, rotations_given):
+    """What ran, read from the settings that ran (``params["settings"]`` holds them)."""
+    shape = settings.shape
+    return dict(method=settings.method, K=K, seed=seed,
+                rotation_strategy=None if rotations_given else settings.rotation.strategy,
+                rotation_options=None if rotations_given else
+                dataclasses.asdict(settings.rotation),
+                shape_prior=shape.prior, shape_solver=shape.solver.name,
+                shape_options=dataclasses.asdict(shape.solver),
+                select_rotations=shape.select_rotations and not rotations_given,
+                scale=scale, rotations_given=rotations_given,
+                missing=settings.measurement.missing,
+                completion=settings.measurement.completion, settings=settings)
 
 
 def _check_inputs(W, K, rotations, missing):

@@ -178,3 +178,26 @@ def blas_threads(n=1):
 
     with threadpool_limits(limits=n):
         yield
+
+
+def check_choice(name, value, allowed):
+    """``value`` if it is one of ``allowed`` (a tuple or the keys of a dict); ValueError
+    naming the value and the choices otherwise. Every choice list of the package is
+    written once and read here, by the docstrings and by the CLI."""
+    if value not in tuple(allowed):
+        raise ValueError(f"{name} must be one of {list(allowed)}; got {value!r}")
+    return value
+
+
+def check_flag(name, value):
+    """``value`` if it is a bool; ValueError otherwise."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+    return value
+
+
+def check_fraction(name, value):
+    """``value`` if it is in (0, 1]; ValueError otherwise."""
+    if not (check_positive(name, value) <= 1.0):
+        raise ValueError(f"{name} must be in (0, 1]; got {value!r}")
+    return value

@@ -9,7 +9,7 @@ from threadpoolctl import threadpool_limits
 import data_tools
 import nrsfm
 from nrsfm.metrics import e3d, rotation_error
-from nrsfm.stages.rotation_select import determined_subspace, effective_K, lift_triplets
+from nrsfm.stages.rotations.subspace import determined_subspace, effective_K, lift_triplets
 
 
 @pytest.fixture(autouse=True)
@@ -79,7 +79,7 @@ def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
     from nrsfm.settings import RotationSettings
     from nrsfm.stages.corrective import triplet_cost
     from nrsfm.stages.measurement import factorize
-    from nrsfm.stages.rotation_select import lower_minimum
+    from nrsfm.stages.rotations.subspace import lower_minimum
     from nrsfm.stages.rotations import estimate_rotations
 
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=5)
@@ -109,8 +109,8 @@ def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
 def test_settings_of_the_issue_18_options():
     import dataclasses
 
-    from nrsfm.settings import (RotationAblationSettings, RotationSettings, ShapeSettings,
-                                method_settings, rotation_settings)
+    from nrsfm.research import RotationAblationSettings, rotation_settings
+    from nrsfm.settings import RotationSettings, ShapeSettings, method_settings
 
     with pytest.raises(ValueError, match="determined"):
         RotationSettings(determined="yes")
@@ -118,7 +118,7 @@ def test_settings_of_the_issue_18_options():
         ShapeSettings(select_rotations=1)
     fam = rotation_settings("family")
     assert isinstance(fam, RotationAblationSettings) and fam.combine == "family"
-    assert type(rotation_settings("organic")) is RotationSettings
+    assert isinstance(rotation_settings("organic"), RotationSettings)
     seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
     s = method_settings()
     only = dataclasses.replace(s, shape=dataclasses.replace(s.shape, select_rotations=False))
@@ -129,7 +129,9 @@ def test_settings_of_the_issue_18_options():
 
 def test_family_strategy_runs_the_combination():
     seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
-    res = nrsfm.reconstruct(seq.W, 2, rotation_options=dict(strategy="family"))
+    from nrsfm.research import research_settings
+
+    res = nrsfm.reconstruct(seq.W, 2, settings=research_settings("family"))
     assert res.rotation_stage.strategy == "family"
     assert "G_family" in res.rotation_stage.info
     assert "G_family" not in nrsfm.reconstruct(seq.W, 2).rotation_stage.info

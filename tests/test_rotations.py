@@ -8,9 +8,11 @@ from threadpoolctl import threadpool_limits
 import data_tools
 from nrsfm import rotation_error
 from nrsfm.stages.measurement import factorize
-from nrsfm import ablation as AB
+from nrsfm.research import family as FAM
+from nrsfm.research import rotations as AB
 from nrsfm import geometry as GEO
-from nrsfm.settings import RotationSettings, rotation_settings
+from nrsfm.research import rotation_settings
+from nrsfm.settings import RotationSettings
 from nrsfm.stages import rotations as RT
 
 FLIP = np.diag([-1.0, -1.0, 1.0])
@@ -178,7 +180,7 @@ def test_every_strategy_exact_noise_free(strategy, options):
 @pytest.mark.parametrize("K", [2, 3])
 def test_triplet_family_noise_free_is_k_dimensional(K):
     seq, M = _seq(K, "smooth", seed=10 + K)
-    G, eig = AB.triplet_family(M, seq.rotations, K)
+    G, eig = FAM.triplet_family(M, seq.rotations, K)
     assert G.shape == (K, 3 * K, 3)
     # exact data: the K family members give M_f G^k = c_fk R_f[:2] exactly
     assert eig.max() < 1e-10
@@ -193,8 +195,8 @@ def test_combine_family_beats_single_triplet_under_noise():
     for seed in range(3):
         seq, M = _seq(3, "smooth", noise=0.08, seed=20 + seed, F=80)
         single = RT.estimate_rotations(M, 3, RotationSettings.preset("bmm"), seed=0)
-        G, _ = AB.triplet_family(M, single.rotations, 3)
-        R, w = AB.combine_family(M, G, single.rotations)
+        G, _ = FAM.triplet_family(M, single.rotations, 3)
+        R, w = FAM.combine_family(M, G, single.rotations)
         assert w.shape == (3, 80) and np.all(w >= 0)
         R, _ = RT.resolve_depth_signs(R)
         errs.append((rotation_error(R, seq.rotations),

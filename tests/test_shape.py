@@ -6,12 +6,20 @@ import pytest
 import data_tools
 import nrsfm
 from nrsfm.metrics import e3d
-from nrsfm.settings import (PRIORS, ClosedFormSettings, ShapeSettings,
-                            solver_settings)
-from nrsfm.stages.shape.admm import normalization_scale
-from nrsfm.stages.shape import (ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
-                                solve_shape, truncate_rank)
-from nrsfm.stages.shape.admm import optimize_shapes, psvt, shape_weights
+from nrsfm.settings import ClosedFormSettings, ShapeSettings, shape_solvers
+from nrsfm.stages.shape import (PRIORS, ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
+                                solve_shape, solve_shapes, solver_settings, truncate_rank)
+from nrsfm.stages.shape.admm import (AdmmSettings, admm_iterations, normalization_scale, psvt,
+                                     shape_weights)
+
+
+def optimize_shapes(W, R, K, prior="organic", progress=None, **options):
+    """The ADMM's iterations on W as given (no normalisation), options as keywords."""
+    return admm_iterations(W, R, K, prior, AdmmSettings(**options), progress)
+
+
+def optimize_shapes_bilinear(W, R, K, prior="organic", **options):
+    return solve_shapes(W, R, K, prior, "bilinear", **options)
 
 
 @pytest.fixture(scope="module")
@@ -187,7 +195,7 @@ def test_existing_helpers(seq):
     dict(R=np.broadcast_to(np.eye(3), (4, 3, 3))),        # wrong frame count
     dict(R=np.ones((3, 4, 3))),
     dict(K=0), dict(prior="bogus"), dict(N=-1), dict(mu=-1.0), dict(lam=1.0),
-    dict(rho0=0.0), dict(max_iter=0), dict(init="bogus"), dict(output="bogus"),
+    dict(rho0=0.0), dict(max_iter=0), dict(init="bogus"),
     dict(gamma=0.0), dict(xi=-1.0)])
 def test_optimize_shapes_bad_input(change):
     rng = np.random.default_rng(0)
@@ -200,10 +208,9 @@ def test_optimize_shapes_bad_input(change):
 
 # ------------------------------------------------------------------ bilinear solver, closed form
 from nrsfm.noise import noise_level  # noqa: E402
-from nrsfm.stages.shape import SHAPE_SOLVERS  # noqa: E402
-from nrsfm.stages.shape.bilinear import (_objective, bilinear_weights,  # noqa: E402
-                                  closed_form_coefficients, closed_form_shapes,
-                                  optimize_shapes_bilinear)
+from nrsfm.stages.shape.bilinear import _objective, bilinear_weights  # noqa: E402
+from nrsfm.stages.shape.closed_form import (closed_form_coefficients,  # noqa: E402
+                                            closed_form_shapes)
 
 
 @pytest.mark.parametrize("K", range(1, 9))
@@ -299,7 +306,7 @@ def test_bilinear_weights():
 
 
 @pytest.mark.parametrize("method", ["organic", "wnn", "bmm"])
-@pytest.mark.parametrize("solver", SHAPE_SOLVERS)
+@pytest.mark.parametrize("solver", shape_solvers())
 def test_every_prior_with_every_solver(seq, method, solver):
     rec = nrsfm.reconstruct(seq.W, seq.K, method=method, rotations=seq.rotations,
                             shape_solver=solver)

@@ -6,6 +6,12 @@ import pytest
 import data_tools
 from nrsfm.metrics import e3d
 from nrsfm.stages.shape import constrained as of
+from nrsfm.stages.shape import fit_set
+from nrsfm.stages.shape.constrained import ConstrainedSettings
+
+
+def organic_fit_shapes(W, R, K, **options):
+    return of.organic_fit(W, R, K, ConstrainedSettings(**options))
 
 
 def _rank_deficient(F=40, P=16, seed=0):
@@ -26,7 +32,7 @@ def _rank_deficient(F=40, P=16, seed=0):
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_exact_on_noise_free_rank_k(K, scale):
     seq = data_tools.make_synthetic(F=40, P=3 * K + 2, K=K, motion="random", seed=K)
-    res = of.organic_fit_shapes(scale * seq.W, seq.rotations, K)
+    res = organic_fit_shapes(scale * seq.W, seq.rotations, K)
     assert e3d(res.shapes, seq.shapes) < 1e-8
     assert res.residual <= res.eps * (1 + 1e-9) + 1e-12 * scale
 
@@ -36,7 +42,7 @@ def test_exact_on_noise_free_rank_k(K, scale):
 def test_exact_on_rank_deficient_shapes(K, scale):
     """W of rank 5 < 3K: the rank-K fit is not unique; the answer is still the shape."""
     W, R, gt = _rank_deficient()
-    res = of.organic_fit_shapes(scale * W, R, K)
+    res = organic_fit_shapes(scale * W, R, K)
     assert res.chosen == "admm"                      # the closed form is not unique here
     assert "closed_form" not in res.candidate_objectives
     assert e3d(res.shapes, gt) < 1e-6
@@ -44,9 +50,9 @@ def test_exact_on_rank_deficient_shapes(K, scale):
 
 def test_noisy_scale_free_feasible_and_deterministic():
     seq = data_tools.make_synthetic(F=50, P=20, K=3, motion="smooth", noise=0.02, seed=4)
-    a = of.organic_fit_shapes(seq.W, seq.rotations, 3)
-    b = of.organic_fit_shapes(1e3 * seq.W, seq.rotations, 3)
-    c = of.organic_fit_shapes(seq.W, seq.rotations, 3)
+    a = organic_fit_shapes(seq.W, seq.rotations, 3)
+    b = organic_fit_shapes(1e3 * seq.W, seq.rotations, 3)
+    c = organic_fit_shapes(seq.W, seq.rotations, 3)
     np.testing.assert_allclose(b.shapes, 1e3 * a.shapes, rtol=0, atol=1e-6 * np.abs(b.shapes).max())
     np.testing.assert_array_equal(a.shapes, c.shapes)
     assert a.eps == pytest.approx(of.residual_bound(seq.W, 3))
@@ -68,10 +74,10 @@ def test_kkt_point_does_not_depend_on_rounding():
     3.7e-8), and every answer is certified."""
     seq = data_tools.make_synthetic(F=60, P=25, K=3, motion="random", noise=0.03, seed=7)
     rms = np.sqrt(np.mean(seq.W ** 2))
-    ref = of.organic_fit_shapes(seq.W, seq.rotations, 3)
+    ref = organic_fit_shapes(seq.W, seq.rotations, 3)
     for d in (1, 2):
         W = seq.W + 1e-7 * rms * np.random.default_rng(d).standard_normal(seq.W.shape)
-        res = of.organic_fit_shapes(W, seq.rotations, 3)
+        res = organic_fit_shapes(W, seq.rotations, 3)
         assert res.certified
         assert np.linalg.norm(res.shapes - ref.shapes) < 1e-4 * np.linalg.norm(ref.shapes)
 
@@ -95,21 +101,21 @@ def test_projection_onto_the_fit_set():
     X = rng.standard_normal((10, 3, 8))
     Rf = seq.rotations[:, :2]
     for eps in (0.0, 0.5, 1e3):
-        Y = of.project_to_fit(X, seq.W, seq.rotations, eps)
+        Y = fit_set.project_to_fit(X, seq.W, seq.rotations, eps)
         res = np.linalg.norm(Rf @ Y - seq.W.reshape(10, 2, 8))
         assert res <= eps + 1e-12
         n = np.cross(Rf[:, 0], Rf[:, 1])
         # depth (along n_f) unchanged, and idempotent
         np.testing.assert_allclose(np.einsum("fc,fcp->fp", n, Y), np.einsum("fc,fcp->fp", n, X),
                                    atol=1e-12)
-        np.testing.assert_allclose(of.project_to_fit(Y, seq.W, seq.rotations, eps), Y, atol=1e-12)
-    np.testing.assert_allclose(of.project_to_fit(X, seq.W, seq.rotations, 1e3), X)
+        np.testing.assert_allclose(fit_set.project_to_fit(Y, seq.W, seq.rotations, eps), Y, atol=1e-12)
+    np.testing.assert_allclose(fit_set.project_to_fit(X, seq.W, seq.rotations, 1e3), X)
 
 
 def test_exact_fit_shapes_fit_W():
     seq = data_tools.make_synthetic(F=12, P=9, K=2, seed=3)
     Z = np.random.default_rng(0).standard_normal((12, 9))
-    X = of.exact_fit_shapes(seq.W, seq.rotations, Z)
+    X = fit_set.exact_fit_shapes(seq.W, seq.rotations, Z)
     np.testing.assert_allclose((seq.rotations[:, :2] @ X).reshape(seq.W.shape), seq.W,
                                atol=1e-12)
 
@@ -119,7 +125,7 @@ def test_weighted_svt_is_the_prox_for_nondecreasing_thresholds():
     for shape in ((9, 5), (5, 9)):
         M = rng.standard_normal(shape)
         t = np.array([0.0, 0.3, 0.5, 0.9, 2.0])
-        Y, s = of.weighted_svt(M, t)
+        Y, s = fit_set.weighted_svt(M, t)
         U, sv, Vt = np.linalg.svd(M, full_matrices=False)
         np.testing.assert_allclose(Y, (U * np.maximum(sv - t, 0)) @ Vt, atol=1e-10)
         np.testing.assert_allclose(s, np.maximum(sv - t, 0), atol=1e-10)
@@ -146,15 +152,15 @@ def test_bad_input(change, match):
     kw = {k: change.pop(k) for k in list(change) if k not in args}
     args.update(change)
     with pytest.raises(ValueError, match=match):
-        of.organic_fit_shapes(args["W"], args["R"], args["K"], **kw)
+        organic_fit_shapes(args["W"], args["R"], args["K"], **kw)
 
 
 def test_non_orthonormal_cameras_rejected():
     seq = data_tools.make_synthetic(F=10, P=10, K=1, seed=0)
     with pytest.raises(ValueError, match="orthonormal"):
-        of.organic_fit_shapes(seq.W, 2 * seq.rotations, 1)
+        organic_fit_shapes(seq.W, 2 * seq.rotations, 1)
     with pytest.raises(ValueError, match="zero"):
-        of.organic_fit_shapes(0 * seq.W, seq.rotations, 1)
+        organic_fit_shapes(0 * seq.W, seq.rotations, 1)
 
 
 def test_through_reconstruct_with_given_rotations():
@@ -175,7 +181,7 @@ def test_through_reconstruct_with_given_rotations():
 
 
 def test_settings_validated():
-    from nrsfm.settings import ConstrainedSettings, solver_settings
+    from nrsfm.stages.shape import solver_settings
 
     assert solver_settings("constrained", dict(lam=1.2)).lam == 1.2
     for bad in (dict(lam=1.0), dict(rho0=0.0), dict(tol=-1.0), dict(max_iter=0),

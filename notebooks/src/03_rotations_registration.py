@@ -39,9 +39,9 @@ import data_tools
 import nrsfm
 from nrsfm.stages.measurement import factorize, working_scale
 from nrsfm.views import output_path, save_recording, show_recording, shown_path
-from nrsfm.ablation import STRATEGIES, estimate_rotations_ablation
+from nrsfm.research.rotations import STRATEGIES, estimate_rotations_ablation
 from nrsfm.geometry import rotation_angle
-from nrsfm.settings import rotation_settings
+from nrsfm.research import rotation_settings
 from nrsfm.stages.rotations import (FLIP, MIRROR, estimate_rotations, filter_rotations,
                                     register_rotations, resolve_depth_signs,
                                     rotations_from_triplets)
@@ -175,7 +175,7 @@ plt.show()
 # %% [markdown]
 # ## The whole rotation stage, strategy by strategy
 #
-# `estimate_rotations_ablation(M_hat, K, rotation_settings(strategy))` (`nrsfm.ablation`;
+# `estimate_rotations_ablation(M_hat, K, rotation_settings(strategy))` (`nrsfm.research.rotations`;
 # the methods use `organic` and `bmm` through `estimate_rotations`); the strategies:
 
 # %%

@@ -18,7 +18,7 @@
 #   (Lee & Civera), rather than the chordal L2 mean.
 #
 # `nrsfm.stages.rotations.average_rotations` is Algorithm 1 vectorised over frames;
-# `nrsfm.ablation.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
+# `nrsfm.research.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
 
 # %%
 import os
@@ -36,7 +36,8 @@ from scipy.spatial.transform import Rotation
 import data_tools
 import nrsfm
 from nrsfm.views import build_recording, output_path, show_recording, shown_path
-from nrsfm.ablation import chordal_mean
+from nrsfm.research import research_settings
+from nrsfm.research.rotations import chordal_mean
 from nrsfm.geometry import average_rotations, project_to_so3, rotation_angle
 from nrsfm.stages.rotations import resolve_depth_signs
 
@@ -179,7 +180,7 @@ else:
 # With track noise, every sample of frame $f$ is lifted from the same noisy block
 # $\mathbf M_f$, and triplets refined on overlapping windows are near copies of the best
 # one: their L1 average is no better than the single triplet (BMM). The research strategy
-# `family` (`nrsfm.ablation`; the default before issue 18) therefore adds one step after
+# `family` (`nrsfm.research`; the default before issue 18) therefore adds one step after
 # the average: the $K$ triplets of the family consistent with the averaged rotations
 # (`triplet_family`: for fixed $\mathbf R_f$ the valid triplets form a $K$-dimensional
 # linear family), which see $\mathbf M_f$ through different directions, combined per frame
@@ -190,7 +191,7 @@ else:
 rows_noise = []
 for s_ in range(4):
     sq = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.10, seed=30 + s_)
-    org = nrsfm.reconstruct(sq.W, sq.K, seed=s_, rotation_options=dict(strategy="family"))
+    org = nrsfm.reconstruct(sq.W, sq.K, seed=s_, settings=research_settings("family"))
     bmm = nrsfm.reconstruct(sq.W, sq.K, method="bmm", seed=s_)
     rows_noise.append((nrsfm.rotation_error(bmm.rotations, sq.rotations),
                        e_R_of(org.rotation_stage.averaged, sq.rotations),

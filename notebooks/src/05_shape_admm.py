@@ -35,7 +35,7 @@
 # closed-form rank-$K$ solution (Valmadre et al., DICTA 2015) as its start.
 #
 # Everything below calls `nrsfm.stages.shape` (`pseudo_inverse_shapes`, `psvt`, `shape_weights`,
-# `optimize_shapes`), `nrsfm.stages.shape.bilinear` or `nrsfm.reconstruct`; the rotations are the
+# `admm_iterations`), `nrsfm.stages.shape.bilinear` or `nrsfm.reconstruct`; the rotations are the
 # ground truth's, so that only the shape stage is judged.
 
 # %%
@@ -53,7 +53,7 @@ import data_tools
 import nrsfm
 from nrsfm.views import figures, output_path, save_recording, show_recording, shown_path
 from nrsfm.stages.shape import phi, pseudo_inverse_shapes
-from nrsfm.stages.shape.admm import optimize_shapes, psvt, shape_weights
+from nrsfm.stages.shape.admm import AdmmSettings, admm_iterations, psvt, shape_weights
 
 # %% [markdown]
 # ## The pseudo-inverse shape is planar
@@ -96,7 +96,7 @@ for N in (0, 1, 3):
 # %% [markdown]
 # ## ADMM run and its history
 #
-# `optimize_shapes` returns a `ShapeResult` whose `history` holds, per iteration, the
+# `admm_iterations` returns a `ShapeResult` whose `history` holds, per iteration, the
 # Eq. (10) cost, the data term $\tfrac12\|\mathbf W-\mathbf R\mathbf X\|_F^2$, the residual
 # $\max|\mathbf X^\sharp-\Phi(\mathbf X)|$ and $\rho$. With $\lambda=1.1$ the penalty schedule
 # is geometric, $\rho_t=\rho_0\lambda^t$.
@@ -146,15 +146,15 @@ plt.show()
 #
 # $\xi\propto\sqrt{\sigma_1}$ while the data term scales with $\sigma_1^2$: multiplying
 # $\mathbf W$ by 10 makes the prior ten times weaker relative to the data, and the result
-# falls back towards the pseudo-inverse shape. `optimize_shapes` works
+# falls back towards the pseudo-inverse shape. `admm_iterations` works
 # in whatever units it is given; the shape stage's ADMM (`solve_admm`) therefore divides
 # $\mathbf W$ by a scale computed from $\mathbf W$ alone (`normalization_scale` of
 # `nrsfm.stages.shape.admm`) and returns shapes in the units it was given.
 
 # %%
-by_scale = {c: nrsfm.e3d(optimize_shapes(c * seq.W, seq.rotations, K).shapes, seq.shapes)
+by_scale = {c: nrsfm.e3d(admm_iterations(c * seq.W, seq.rotations, K, "organic", AdmmSettings()).shapes, seq.shapes)
             for c in (0.1, 1.0, 10.0)}
-print("e3d of optimize_shapes(c * W):", {c: round(e, 4) for c, e in by_scale.items()})
+print("e3d of admm_iterations(c * W):", {c: round(e, 4) for c, e in by_scale.items()})
 print(f"reconstruct normalises W (||W||_F = {organic.scale:.3g}): e3d {e3d['organic']:.4f}")
 # measured: 0.0073, 0.0138, 0.30
 assert by_scale[10.0] > 10 * by_scale[1.0]
@@ -208,7 +208,8 @@ plt.show()
 # rank-$K$ fit. The ADMM's relaxation does not (its error is the relaxation's bias).
 
 # %%
-from nrsfm.stages.shape.bilinear import closed_form_shapes, optimize_shapes_bilinear
+from nrsfm.stages.shape.bilinear import solve_bilinear
+from nrsfm.stages.shape.closed_form import closed_form_shapes
 
 exact = {}
 for K_ in (1, 2, 4, 8):
@@ -276,8 +277,8 @@ targets = (10, 50, 170, 500, 2000)
 by_target = {}
 for t in targets:
     Wt = s2.W * t / np.linalg.norm(s2.W)
-    by_target[t] = [nrsfm.e3d(optimize_shapes(Wt, s2.rotations, 2).shapes, s2.shapes),
-                    nrsfm.e3d(optimize_shapes_bilinear(Wt, s2.rotations, 2).shapes, s2.shapes)]
+    by_target[t] = [nrsfm.e3d(admm_iterations(Wt, s2.rotations, 2, "organic", AdmmSettings()).shapes, s2.shapes),
+                    nrsfm.e3d(solve_bilinear(Wt, s2.rotations, 2, "organic").shapes, s2.shapes)]
 print("||W||_F   admm      bilinear")
 for t, (a_, b_) in by_target.items():
     print(f"{t:7d} {a_:9.1e} {b_:9.1e}")

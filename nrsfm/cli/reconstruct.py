@@ -7,7 +7,7 @@ import os
 
 from ..validation import check_K
 from ..pipeline import METHODS, reconstruct
-from ..stages.shape import SHAPE_SOLVERS
+from ..settings import shape_solvers
 from .common import (UsageError, add_rrd_option, positive_int, print_report, rrd_path, seed,
                      write_recording)
 
@@ -18,7 +18,7 @@ def add_common_options(p, rrd_name="NAME.rrd"):
     """``--method``, ``--shape-solver``, ``--seed``, ``--rrd [PATH]``, ``--quiet``."""
     p.add_argument("--method", choices=sorted(METHODS), default="organic",
                    help="pipeline to run (default: organic)")
-    p.add_argument("--shape-solver", choices=SHAPE_SOLVERS, default="bilinear",
+    p.add_argument("--shape-solver", choices=shape_solvers(), default="bilinear",
                    help="shape-stage solver (default: bilinear; admm: the paper's "
                         "continuation ADMM; closed_form: exact rank-K, no prior; "
                         "constrained: W fitted to within its noise)")

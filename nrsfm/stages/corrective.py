@@ -18,7 +18,7 @@ Stages, each a function named by what it maps:
 * :func:`corrective_triplets`: the search, as the rotation stage runs it.
 
 Dai's own relaxation (minimum nuclear norm over the solution space) and the other starts
-are research variants in :mod:`nrsfm.ablation`. Measurements behind these choices (which
+are research variants in :mod:`nrsfm.research.rotations`. Measurements behind these choices (which
 starts reach the best minimum, with and without track noise, and at what cost):
 ``docs/rotation_stage.md``.
 """
@@ -114,7 +114,7 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
     with ``a = trace(M'M) / (2F 3K)`` (so that both terms are dimensionless). The
     constraint residual of Dai's equations is penalised instead of imposed (the exact
     intersection of the approximate null space with the PSD cone is empty on real data,
-    see :func:`nrsfm.ablation.relaxed_gram`), the normalisation fixes the mean squared camera scale
+    see :func:`nrsfm.research.rotations.relaxed_gram`), the normalisation fixes the mean squared camera scale
     ``mean_f |c_f|^2`` to 1 instead of an arbitrary sum of basis coefficients, and the
     trace (nuclear norm on the PSD cone) pushes the solution to low rank. Which ``lam``
     reaches the best minimum with and without noise: ``docs/rotation_stage.md``.
@@ -538,7 +538,7 @@ def corrective_triplets(M_hat, K, seed=0, hits=2, max_starts=40, sdp_solver="adm
     :func:`search_triplet`: the relaxation at the penalties :data:`SEARCH_LAMBDAS`, then
     seeded random starts, until the lowest cost has been reached by ``hits`` starts (at
     most ``max_starts``). Other starts (Dai's relaxation, its column blocks, a screened
-    multistart) are research variants: :func:`nrsfm.ablation.corrective_triplets_from`.
+    multistart) are research variants: :func:`nrsfm.research.rotations.corrective_triplets_from`.
 
     Parameters
     ----------

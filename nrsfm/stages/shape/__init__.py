@@ -1,59 +1,96 @@
 """Shape stage (paper Sec. 3.2): per-frame shapes X from W and the cameras R.
 
-One interface for every solver: :func:`solve_shape` with a
-:class:`nrsfm.settings.ShapeSettings` returns one result type, :class:`ShapeResult`.
+One interface for every solver: :func:`solve_shape` with a :class:`ShapeSettings` returns
+one result type, :class:`ShapeResult`.
 
-Solvers (one module each, registered in :data:`SOLVERS`):
+Solvers (one module each; each holds its settings class, which registers it in
+:data:`SOLVERS`):
 
 * ``bilinear`` (:mod:`.bilinear`, default): the factored weighted nuclear norm minimised
   to a verified stationary point;
 * ``admm`` (:mod:`.admm`): the paper's continuation ADMM;
-* ``closed_form`` (:mod:`.bilinear`): the exact rank-K solution, no prior;
+* ``closed_form`` (:mod:`.bilinear`, from :mod:`.closed_form`): the exact rank-K solution,
+  no prior;
 * ``constrained`` (:mod:`.constrained`, optional): the organic norm with W fitted to within
   its noise (exact on rank-K and rank-deficient data; worse under noise and slower);
 * ``pseudo_inverse`` (:mod:`.pseudo_inverse`): rank-K truncation of ``pinv(R) W``.
 
-A new solver is one module with a ``solve(W, R, K, prior, settings, progress)`` function,
-one settings type in :mod:`nrsfm.settings` (a frozen dataclass deriving from
-``SolverSettings``, with ``name``) and one line in :data:`SOLVERS`.
+A new solver is one module: a frozen dataclass deriving from
+:class:`~nrsfm.stages.shape.base.SolverSettings` with a ``name`` and a ``solve`` method
+(:mod:`.base`). Every module of this package is imported here, so a module added to the
+package is registered without editing any list.
 """
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+import dataclasses
+import importlib
+import pkgutil
+from dataclasses import dataclass
 
-from ...settings import (AdmmSettings, BilinearSettings, ClosedFormSettings,
-                         ConstrainedSettings, PseudoInverseSettings, ShapeSettings)
-from .admm import solve_admm
-from .bilinear import solve_bilinear, solve_closed_form
-from .common import (ShapeResult, phi, phi_inv, pseudo_inverse_shapes,
-                     truncate_rank)
-from .constrained import solve_constrained
-from .pseudo_inverse import solve_pseudo_inverse
+from ...validation import check_choice, check_flag
+from .base import PRIORS, SOLVERS, SolverSettings
+from .bilinear import BilinearSettings
+from .common import ShapeResult, phi, phi_inv, pseudo_inverse_shapes, truncate_rank
 
-__all__ = ["SHAPE_SOLVERS", "SOLVERS", "ShapeResult", "Solver", "phi", "phi_inv",
-           "pseudo_inverse_shapes", "solve_shape", "solve_shapes", "truncate_rank"]
+for _module in pkgutil.iter_modules(__path__):          # registers every solver module
+    importlib.import_module(f"{__name__}.{_module.name}")
 
-
-class Solver(NamedTuple):
-    """A registered shape solver: its settings type and its function."""
-
-    settings: type
-    solve: Callable
+__all__ = ["PRIORS", "SOLVERS", "ShapeResult", "ShapeSettings", "SolverSettings", "phi",
+           "phi_inv", "pseudo_inverse_shapes", "solve_shape", "solve_shapes",
+           "solver_settings", "truncate_rank"]
 
 
-#: name -> Solver. ``reconstruct(shape_solver=name)`` picks one (``pseudo_inverse`` is the
-#: method of that name).
-SOLVERS = {
-    "admm": Solver(AdmmSettings, solve_admm),
-    "bilinear": Solver(BilinearSettings, solve_bilinear),
-    "closed_form": Solver(ClosedFormSettings, solve_closed_form),
-    "constrained": Solver(ConstrainedSettings, solve_constrained),
-    "pseudo_inverse": Solver(PseudoInverseSettings, solve_pseudo_inverse),
-}
+@dataclass(frozen=True)
+class ShapeSettings:
+    """Shape stage settings: the prior and one solver's settings.
 
-#: the solvers ``reconstruct(shape_solver=...)`` offers with a prior-based method
-SHAPE_SOLVERS = ("admm", "bilinear", "closed_form", "constrained")
+    Attributes
+    ----------
+    prior : {"organic", "weighted", "nuclear"} or None
+        The regulariser (:data:`~nrsfm.stages.shape.base.PRIORS`); None exactly for the
+        solvers that take no prior (``closed_form``, ``pseudo_inverse``).
+    solver : SolverSettings
+        The solver and its typed settings (any registered in :data:`SOLVERS`).
+    select_rotations : bool
+        When the rotation stage ran: solve the shape with the stage's rotations and with
+        its best single triplet's, and keep the lower shape objective
+        (:mod:`nrsfm.stages.selection`). False: the stage's rotations only.
+    """
+
+    prior: str = "organic"
+    solver: SolverSettings = BilinearSettings()
+    select_rotations: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.solver, SolverSettings) or not self.solver.name:
+            raise ValueError(f"solver must be the settings of a registered shape solver "
+                             f"(e.g. BilinearSettings()); got {self.solver!r}")
+        if self.solver.uses_prior:
+            check_choice("shape prior", self.prior, PRIORS)
+        elif self.prior is not None:
+            raise ValueError(f"the {self.solver.name} solver takes no prior; got "
+                             f"prior={self.prior!r} (use prior=None)")
+        check_flag("select_rotations", self.select_rotations)
+
+
+def solver_settings(name, options=None):
+    """Settings of a registered shape solver from a dict of options.
+
+    Raises
+    ------
+    ValueError
+        Unknown solver (the registered ones are named), or an option the solver does not
+        take (its options are named).
+    """
+    cls = SOLVERS[check_choice("shape_solver", name, SOLVERS)]
+    options = dict(options or {})
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = set(options) - fields
+    if unknown:
+        raise ValueError(f"unknown options {sorted(unknown)} for shape_solver {name!r}; "
+                         f"it takes {sorted(fields)}")
+    return cls(**options)
 
 
 def solve_shape(W, R, K, settings=None, progress=None):
@@ -65,7 +102,7 @@ def solve_shape(W, R, K, settings=None, progress=None):
         Row-centred measurements (any units: the solvers return shapes in W's units).
     R : (F, 3, 3) or (F, 2, 3) ndarray
     K : int
-    settings : nrsfm.settings.ShapeSettings, optional
+    settings : ShapeSettings, optional
         Prior and solver settings; default ``ShapeSettings()`` (organic, bilinear).
     progress : callable(str) or None
 
@@ -74,20 +111,17 @@ def solve_shape(W, R, K, settings=None, progress=None):
     ShapeResult
     """
     settings = ShapeSettings() if settings is None else settings
-    solver = SOLVERS.get(settings.solver.name)
-    if solver is None or not isinstance(settings.solver, solver.settings):
-        raise ValueError(f"no solver registered for {settings.solver!r}; expected one of "
-                         f"{list(SOLVERS)}")
-    return solver.solve(W, R, K, settings.prior, settings.solver, progress)
+    if not isinstance(settings, ShapeSettings):
+        raise ValueError(f"settings must be a ShapeSettings; got {settings!r}")
+    return settings.solver.solve(W, R, K, settings.prior, progress)
 
 
-def solve_shapes(W, R, K, prior="organic", solver="bilinear", progress=None, **options):
+def solve_shapes(W, R, K, prior=None, solver="bilinear", progress=None, **options):
     """:func:`solve_shape` with the solver named and its options as keywords (converted
-    into the solver's settings type; an unknown option is a ValueError naming the known
-    ones). ``prior`` is ignored by ``closed_form`` and ``pseudo_inverse``."""
-    from ...settings import solver_settings
-
+    into the solver's settings type by :func:`solver_settings`). ``prior`` defaults to
+    ``organic`` for the solvers that take one; giving a prior to a solver that takes none
+    is a ValueError."""
     settings = solver_settings(solver, options)
-    no_prior = settings.name in ("closed_form", "pseudo_inverse")
-    return solve_shape(W, R, K, ShapeSettings(prior=None if no_prior else prior,
-                                              solver=settings), progress)
+    if prior is None and settings.uses_prior:
+        prior = "organic"
+    return solve_shape(W, R, K, ShapeSettings(prior=prior, solver=settings), progress)

@@ -6,7 +6,7 @@ The paper's problem (Eq. 8, 10) is
 
 with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)``, solved by ADMM (Eq. 11-14)
 with the partial singular value thresholding (PSVT) operator of Oh et al. for the X# step
-(:func:`optimize_shapes`). Three priors share the machinery:
+(:func:`admm_iterations`). Three priors share the machinery:
 
 ``organic``  (the paper): N = 1, theta_i = xi / (sigma_i(X_init#) + gamma) (Eq. 9).
 ``weighted`` (R-BMM-style baseline): N = 0, the same weights on every singular value.
@@ -26,14 +26,17 @@ answers, see ``docs/shape_stage.md``). The other solvers are scale-free.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import ClassVar, Optional
 
 import numpy as np
 
-from ...settings import PRIORS, AdmmSettings
+from ...validation import check_choice, check_integer, check_K, check_positive
+from .base import PRIORS, SolverSettings, check_prior
 from .common import ShapeResult, check_shape_inputs, phi, phi_inv, truncate_rank
 
-__all__ = ["TARGET_FROBENIUS", "normalization_scale", "optimize_shapes", "psvt",
-           "shape_weights", "solve_admm"]
+__all__ = ["AdmmSettings", "TARGET_FROBENIUS", "admm_iterations", "normalization_scale",
+           "psvt", "shape_weights", "solve_admm"]
 
 #: Frobenius norm of the W the ADMM's constants are tuned for (its setting).
 TARGET_FROBENIUS = 170.0
@@ -41,6 +44,62 @@ TARGET_FROBENIUS = 170.0
 XI_FACTOR = 5e-3
 #: a progress line every this many iterations
 PROGRESS_EVERY = 100
+
+
+
+@dataclass(frozen=True)
+class AdmmSettings(SolverSettings):
+    """The paper's continuation ADMM (``shape_solver="admm"``).
+
+    Attributes
+    ----------
+    N : int or None
+        Leading singular values left unpenalised; default from the prior
+        (:data:`nrsfm.stages.shape.base.PRIORS`).
+    mu : float
+        Weight of the regulariser (paper: 1).
+    rho0, lam, rho_max : float
+        Initial penalty, its growth per iteration (> 1) and its cap (paper: 1e-4, 1.1, 1e10).
+    eps : float
+        Stop when ``max |X# - Phi(X)| < eps`` (paper: 1e-10).
+    xi, gamma : float
+        Eq. (9); ``xi`` defaults to ``5e-3 sqrt(sigma_1(X_init#))``.
+    max_iter : int
+        Safety cap on iterations (the rho schedule alone stops after
+        ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
+    init : {"rank_k", "full"}
+        Start ``X = X# =`` the rank-K truncation of X_init (``rank_k``) or X_init itself.
+    """
+
+    name: ClassVar[str] = "admm"
+    INITS: ClassVar[tuple] = ("rank_k", "full")
+    N: Optional[int] = None
+    mu: float = 1.0
+    rho0: float = 1e-4
+    lam: float = 1.1
+    rho_max: float = 1e10
+    eps: float = 1e-10
+    xi: Optional[float] = None
+    gamma: float = 1e-6
+    max_iter: int = 1000
+    init: str = "rank_k"
+
+    def __post_init__(self):
+        if self.N is not None:
+            check_integer(self.N, "N", minimum=0)
+        check_positive("mu", self.mu, strict=False)
+        for name in ("rho0", "rho_max", "lam", "gamma"):
+            check_positive(name, getattr(self, name))
+        check_positive("eps", self.eps, strict=False)
+        if self.lam <= 1:
+            raise ValueError(f"lam must be > 1 (rho grows each iteration); got {self.lam}")
+        if self.xi is not None:
+            check_positive("xi", self.xi)
+        check_integer(self.max_iter, "max_iter", minimum=1)
+        check_choice("init", self.init, self.INITS)
+
+    def solve(self, W, R, K, prior, progress=None):
+        return solve_admm(W, R, K, prior, self, progress)
 
 
 def normalization_scale(W):
@@ -181,9 +240,7 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
 # ADMM (Eq. 10-14)
 # --------------------------------------------------------------------------------------
 
-def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=1.1,
-                    rho_max=1e10, eps=1e-10, xi=None, gamma=1e-6, max_iter=1000,
-                    init="rank_k", output="X", progress=None):
+def admm_iterations(W, R, K, prior, settings, progress=None):
     """Low-rank shape by ADMM on Eq. (10) with the PSVT X# step (paper Sec. 3.2).
 
     Parameters
@@ -197,24 +254,7 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
         Number of shape bases (used by ``init="rank_k"``; recorded in ``params``).
     prior : {"organic", "weighted", "nuclear"}
         Thresholding rule, see the module docstring.
-    N : int, optional
-        Leading singular values left unpenalised; default 1 for ``organic``, 0 otherwise.
-    mu : float
-        Weight of the regulariser (paper: 1).
-    rho0, lam, rho_max : float
-        Initial penalty, its growth factor per iteration (> 1) and its cap
-        (paper: 1e-4, 1.1, 1e10).
-    eps : float
-        Stop when ``max |X# - Phi(X)| < eps`` (paper: 1e-10).
-    xi, gamma : float
-        Eq. (9) constants; ``xi`` defaults to ``5e-3 sqrt(sigma_1(X_init#))``.
-    max_iter : int
-        Safety cap on iterations (the rho schedule alone stops after
-        ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
-    init : {"full", "rank_k"}
-        Start ``X = X# = X_init`` (``full``) or its rank-K truncation (``rank_k``).
-    output : {"X", "X_sharp"}
-        Return ``X`` (the data-step variable) or ``Phi^-1(X#)`` (the low-rank variable).
+    settings : AdmmSettings
     progress : callable(str) or None
         Called with a line every 100 iterations and at the end.
 
@@ -225,8 +265,8 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
     Raises
     ------
     ValueError
-        Bad shapes, non-finite entries, non-orthonormal rotations, unknown prior, init or
-        output, non-positive constants, ``lam <= 1``.
+        Bad shapes, non-finite entries, non-orthonormal rotations, K out of range, unknown
+        prior.
 
     Notes
     -----
@@ -243,21 +283,37 @@ def optimize_shapes(W, R, K, prior="organic", *, N=None, mu=1.0, rho0=1e-4, lam=
 
     ``Y`` starts at zero.
 
-    Open details (output, init, stopping, lam) were decided by measurement; see
-    ``docs/shape_stage.md``.
+    The iterate returned is X, the data-step variable. Open details (init, stopping,
+    lam) were decided by measurement; see ``docs/shape_stage.md``.
     """
-    settings = AdmmSettings(N=N, mu=mu, rho0=rho0, lam=lam, rho_max=rho_max, eps=eps, xi=xi,
-                            gamma=gamma, max_iter=max_iter, init=init, output=output)
-    return _admm(W, R, K, prior, settings, progress)
+    check_prior(prior)
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    st = settings
+    N = PRIORS[prior] if st.N is None else st.N
+    say = progress if callable(progress) else (lambda msg: None)
+    Wf = W.reshape(F, 2, P)
+    X_init = Rf.transpose(0, 2, 1) @ Wf             # pinv(R_f) = R_f' for orthonormal rows
+    sigma = np.linalg.svd(phi(X_init), compute_uv=False)
+    theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
+    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say)
+    resid = hist["residual"][-1]
+    say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
+        f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
+        f"cost {hist['cost'][-1]:.6g}")
+    params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
+    return ShapeResult(shapes=X, X_init=X_init, X_init_singular_values=sigma,
+                       theta=theta, N=N, prior=prior, solver="admm", history=hist,
+                       n_iter=n_iter, converged=converged, objective=hist["cost"][-1],
+                       optimality=resid, optimality_kind="residual", params=params)
 
 
 def solve_admm(W, R, K, prior, settings, progress=None):
-    """The shape stage's ADMM: :func:`optimize_shapes` on ``W / s``,
+    """The shape stage's ADMM: :func:`admm_iterations` on ``W / s``,
     ``s = normalization_scale(W)``, with ``shapes``, ``X_init`` and its singular values
     returned in W's units (``theta`` and ``history`` stay in the ADMM's units;
     ``params["admm_scale"]`` is s)."""
     s = normalization_scale(W)
-    res = _admm(W / s, R, K, prior, settings, progress)
+    res = admm_iterations(W / s, R, K, prior, settings, progress)
     res.shapes, res.X_init = res.shapes * s, res.X_init * s
     res.X_init_singular_values = res.X_init_singular_values * s
     res.params["admm_scale"] = s
@@ -279,21 +335,12 @@ def _admm_weights(sigma, prior, N, settings):
     return theta, reg_w, xi
 
 
-def _admm(W, R, K, prior, settings, progress):
-    """The ADMM iterations (Notes of :func:`optimize_shapes`)."""
-    if prior not in PRIORS:
-        raise ValueError(f"unknown shape prior {prior!r}; expected one of {sorted(PRIORS)}")
-    W, Rf, F, P = check_shape_inputs(W, R)
-    if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
-        raise ValueError(f"K must be a positive integer; got {K!r}")
-    K, st = int(K), settings
-    N = PRIORS[prior] if st.N is None else st.N
-    say = progress if callable(progress) else (lambda msg: None)
-    Wf = W.reshape(F, 2, P)
+def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
+    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`).
+
+    Returns (X, history of arrays, iterations, converged)."""
+    F, _, P = Wf.shape
     Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
-    X_init = Rt @ Wf                                # pinv(R_f) = R_f' for orthonormal rows
-    sigma = np.linalg.svd(phi(X_init), compute_uv=False)
-    theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
     X = truncate_rank(X_init, K) if st.init == "rank_k" else X_init.copy()
     Xs = phi(X).copy()
     Y = np.zeros_like(Xs)
@@ -327,13 +374,4 @@ def _admm(W, R, K, prior, settings, progress):
             break
         if rho >= st.rho_max:
             break
-    say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
-        f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
-        f"cost {hist['cost'][-1]:.6g}")
-    shapes = X if st.output == "X" else phi_inv(Xs, P).copy()
-    params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
-    return ShapeResult(shapes=shapes, X_init=X_init, X_init_singular_values=sigma,
-                       theta=theta, N=N, prior=prior, solver="admm",
-                       history={k: np.asarray(v) for k, v in hist.items()},
-                       n_iter=n_iter, converged=converged, objective=hist["cost"][-1],
-                       optimality=resid, params=params)
+    return X, {k: np.asarray(v) for k, v in hist.items()}, n_iter, converged

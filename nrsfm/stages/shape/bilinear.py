@@ -32,147 +32,119 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
 
 Settings and measurements: ``docs/shape_stage.md``.
 
-:func:`closed_form_shapes` is the closed-form rank-K solution of ``R X = W`` (the
-nullspace method of Valmadre, Sridharan, Denman, Fookes, Lucey, "Closed-form solutions for
-low-rank non-rigid reconstruction", DICTA 2015), written here from the maths.
+:class:`ClosedFormSettings` (``shape_solver="closed_form"``) is this solver with ``mu = 0``
+and no iterations from the closed-form start of :mod:`.closed_form`.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
+from typing import ClassVar, Optional
 
 import numpy as np
-import scipy.linalg
 import scipy.optimize
 
 from ...noise import noise_from_singular_values
-from ...settings import PRIORS, BilinearSettings, ClosedFormSettings
+from ...validation import check_choice, check_integer, check_positive
+from .base import SolverSettings, check_prior
+from .closed_form import NULLSPACE_GAP_MIN, c_step, nullspace_coefficients
 from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["balance_factors", "bilinear_weights", "c_step", "closed_form_coefficients",
-           "closed_form_fit", "closed_form_result", "closed_form_shapes",
-           "frame_preconditioner", "optimize_shapes_bilinear", "solve_bilinear",
-           "solve_closed_form"]
+__all__ = ["BilinearSettings", "ClosedFormSettings", "balance_factors", "bilinear_weights",
+           "frame_preconditioner", "solve_bilinear", "solve_closed_form"]
 
-#: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
-NULLSPACE_GAP_MIN = 1e-12
 #: L-BFGS restarts with a fresh preconditioner every this many iterations
 LBFGS_SEGMENT = 100
 
 
 # --------------------------------------------------------------------------------------
-# closed form (nullspace) rank-K solution
+# settings
 # --------------------------------------------------------------------------------------
 
-def closed_form_coefficients(W, R, K):
-    """Rank-K shape coefficients B (F, K) by the nullspace method (Valmadre et al. 2015).
 
-    With ``W ~ M_hat B_hat`` (rank 3K SVD, ``M_hat`` 2F x 3K), an exact rank-K shape
-    ``X_f = sum_k b_fk S_k`` means ``M_hat_f G_k = b_fk R_f`` for a 3K x 3 triplet
-    ``G_k`` per basis. This is linear and homogeneous in ``(G_k, b_1k .. b_Fk)``; eliminating
-    ``b_fk = <R_f, M_hat_f G_k> / 2`` leaves ``sum_f ||(I - r_f r_f' / 2) vec(M_hat_f G)||^2``,
-    a 9K x 9K quadratic form whose K-dimensional nullspace holds every triplet. Its K
-    smallest eigenvectors give B (up to an invertible K x K mixing, which does not change X).
+@dataclass(frozen=True)
+class BilinearSettings(SolverSettings):
+    """The factored weighted nuclear norm (*) (``shape_solver="bilinear"``, the default).
 
-    Returns
-    -------
-    B : (F, K) ndarray
-    eigenvalues : (K + 1,) ndarray
-        The K + 1 smallest eigenvalues of the quadratic form (relative to the largest):
-        K near-zero values and a clear gap mean the rank-K solution is determined.
+    Attributes
+    ----------
+    rank : int or None
+        Factor rank r (default K).
+    mu_factor : float
+        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (measured: 0.03,
+        ``docs/shape_stage.md``).
+    mu : float or None
+        Override ``mu`` (W's units).
+    min_mu : float
+        Used only when the rank-K fit is not unique (the closed form's (K+1)-th eigenvalue
+        at rounding level): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
+        issued. Measured on shark only.
+    init : {"closed_form", "rank_k"}
+        Start from :func:`closed_form_shapes` or the rank-r truncation of X_init.
+    gtol : float
+        Stop when the relative gradient norm is at most gtol.
+    max_iter : int
+        Cap on L-BFGS iterations (0: the start only).
     """
-    W, Rf, F, P, K = check_shape_inputs(W, R, K)
-    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
-    return _nullspace_coefficients(U, s, Rf, K)
+
+    name: ClassVar[str] = "bilinear"
+    INITS: ClassVar[tuple] = ("closed_form", "rank_k")
+    rank: Optional[int] = None
+    mu_factor: float = 0.03
+    mu: Optional[float] = None
+    min_mu: float = 1e-5
+    init: str = "closed_form"
+    gtol: float = 1e-6
+    max_iter: int = 3000
+
+    def __post_init__(self):
+        if self.rank is not None:
+            check_integer(self.rank, "rank", minimum=1)
+        for name in ("mu_factor", "min_mu", "gtol"):
+            check_positive(name, getattr(self, name), strict=False)
+        if self.mu is not None:
+            check_positive("mu", self.mu, strict=False)
+        check_choice("init", self.init, self.INITS)
+        check_integer(self.max_iter, "max_iter", minimum=0)
+
+    def solve(self, W, R, K, prior, progress=None):
+        return solve_bilinear(W, R, K, prior, self, progress)
 
 
-def _nullspace_coefficients(U, s, Rf, K):
-    """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
-    F = Rf.shape[0]
-    s = s / s[0]
-    M = (U[:, :3 * K] * s[:3 * K]).reshape(F, 2, 3 * K)     # M_hat_f, (F, 2, 3K)
-    # vec(M_f G) for G (3K, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
-    MtM = np.einsum("fai,faj->ij", M, M)
-    Q = np.kron(MtM, np.eye(3))
-    # A_f' r_f = vec(M_f' R_f) (3K x 3)
-    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 9 * K)
-    Q -= 0.5 * v.T @ v
-    evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
-    G = evecs[:, :K]                                          # (9K, K)
-    B = 0.5 * v @ G                                           # b_fk = <R_f, M_f G_k> / 2
-    return B, evals[:K + 1] / max(evals[-1], 1e-300)
+@dataclass(frozen=True)
+class ClosedFormSettings(SolverSettings):
+    """The exact rank-K solution, no prior (``shape_solver="closed_form"``), reported with
+    the bilinear solver's measures.
 
-
-def closed_form_result(W, R, K, gtol=ClosedFormSettings.gtol, progress=None):
-    """The closed-form rank-K shape as a shape-stage result (``solver="closed_form"``).
-
-    :func:`optimize_shapes_bilinear` with ``mu = 0`` and no iterations: B from
-    :func:`closed_form_coefficients`, C by least squares; the result reports the data term
-    and the relative gradient norm of the plain rank-K fit at that point. No prior.
+    Attributes
+    ----------
+    gtol : float
+        Tolerance for ``converged`` (relative gradient norm of the plain rank-K fit).
     """
-    return solve_closed_form(W, R, K, None, ClosedFormSettings(gtol=gtol), progress)
+
+    name: ClassVar[str] = "closed_form"
+    uses_prior: ClassVar[bool] = False
+    gtol: float = 1e-6
+
+    def __post_init__(self):
+        check_positive("gtol", self.gtol, strict=False)
+
+    def solve(self, W, R, K, prior=None, progress=None):
+        return solve_closed_form(W, R, K, self, progress)
 
 
-def solve_closed_form(W, R, K, prior, settings, progress=None):
-    """The shape stage's closed form (``prior`` is ignored: an exact rank-K fit has none)."""
+def solve_closed_form(W, R, K, settings=ClosedFormSettings(), progress=None):
+    """The closed-form rank-K shape as a shape-stage result: the bilinear solver with
+    ``mu = 0`` and no iterations (B from :func:`closed_form_coefficients`, C by least
+    squares); the result reports the data term and the relative gradient norm of the plain
+    rank-K fit at that point. No prior."""
     res = _bilinear(W, R, K, "nuclear", BilinearSettings(mu=0.0, max_iter=0, gtol=settings.gtol),
                     progress)
     res.prior, res.solver = "none", "closed_form"
     res.params["prior"] = "none"
     return res
-
-
-def closed_form_shapes(W, R, K):
-    """Closed-form rank-K shape: coefficients by :func:`closed_form_coefficients`, bases
-    by linear least squares.
-
-    Exact (to rounding) when W is exactly ``R X`` with ``rank X# = K`` and the solution is
-    unique; otherwise a least-squares approximation, used as a starting point.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements.
-    R : (F, 3, 3) or (F, 2, 3) ndarray
-    K : int
-
-    Returns
-    -------
-    X : (F, 3, P) ndarray
-    """
-    W, Rf, F, P, K = check_shape_inputs(W, R, K)
-    return closed_form_fit(W, Rf, K)[0]
-
-
-def closed_form_fit(W, Rf, K):
-    """:func:`closed_form_shapes` on checked inputs, with the nullspace gap.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements, not zero.
-    Rf : (F, 2, 3) ndarray
-        Orthonormal camera rows.
-    K : int
-        Checked number of shape bases (``3K <= min(2F, P)``).
-
-    Returns
-    -------
-    X : (F, 3, P) ndarray
-    gap : float
-        The closed form's (K+1)-th smallest eigenvalue relative to its largest: above
-        :data:`NULLSPACE_GAP_MIN` when the rank-K fit is unique, at rounding level when it
-        is not (then X is one member chosen by rounding).
-    """
-    F, P = W.shape[0] // 2, W.shape[1]
-    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
-    B, ev = _nullspace_coefficients(U, s, Rf, K)
-    B = B / np.linalg.norm(B, axis=0)
-    Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
-    Pi = Rf.transpose(0, 2, 1) @ Rf
-    C = c_step(B, Pi, Xi, np.zeros(K))
-    return (B @ C.T).reshape(F, 3, P), float(ev[K])
 
 
 # --------------------------------------------------------------------------------------
@@ -206,28 +178,6 @@ def _singular_values(A):
     G = A @ A.T if A.shape[0] <= A.shape[1] else A.T @ A
     ev = np.linalg.eigvalsh(G)[::-1]
     return np.sqrt(np.maximum(ev, 0.0))
-
-
-def c_step(B, Pi, Xi, reg):
-    """argmin_C E(B, C): one (3r x 3r) system shared by all points.
-
-    For point p with unknowns c_p = [C_i(:, p)]_i (3r), the data term is
-    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``; normal matrix
-    ``sum_f (B_f'B_f) kron (R_f'R_f) + diag(reg kron 1_3)``, right-hand side
-    ``sum_f B_f' kron X_init_f``.
-    """
-    F, r = B.shape
-    P = Xi.shape[1] // 3
-    BB = (B[:, :, None] * B[:, None, :]).reshape(F, r * r)
-    N = (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3).reshape(3 * r, 3 * r)
-    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
-    rhs = (B.T @ Xi).reshape(3 * r, P)
-    try:
-        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
-                                   check_finite=False)
-    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
-        c = np.linalg.lstsq(N, rhs, rcond=None)[0]
-    return c.reshape(r, 3 * P).T                              # (3P, r)
 
 
 def _objective(B, C, Pi, Xi, w2, reg):
@@ -280,11 +230,7 @@ def balance_factors(B, C):
 # solver
 # --------------------------------------------------------------------------------------
 
-def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None,
-                             mu_factor=BilinearSettings.mu_factor, mu=None,
-                             min_mu=BilinearSettings.min_mu, init="closed_form",
-                             gtol=BilinearSettings.gtol, max_iter=BilinearSettings.max_iter,
-                             progress=None):
+def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None):
     """Minimise (*) (module docstring) to a stationary point by variable projection.
 
     Parameters
@@ -296,37 +242,13 @@ def optimize_shapes_bilinear(W, R, K, prior="organic", *, rank=None,
         Number of shape bases.
     prior : {"organic", "weighted", "nuclear"}
         Weights ``a``, see :func:`bilinear_weights`.
-    rank : int, optional
-        Factor rank r (default K).
-    mu_factor : float
-        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (default 0.03,
-        measured: ``docs/shape_stage.md``).
-    mu : float, optional
-        Override ``mu`` (W's units).
-    min_mu : float
-        Used only when the rank-K fit is not unique (the closed form's (K+1)-th
-        eigenvalue is at rounding level, e.g. an exactly low-rank W whose cameras leave
-        depth ambiguous): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
-        issued. Measured on shark only (see ``docs/shape_stage.md``).
-    init : {"closed_form", "rank_k"}
-        Start from :func:`closed_form_shapes` or the rank-r truncation of X_init.
-    gtol : float
-        Stop when the relative gradient norm is at most gtol.
-    max_iter : int
-        Cap on L-BFGS iterations.
+    settings : BilinearSettings
     progress : callable(str) or None
 
     Returns
     -------
     ShapeResult
     """
-    settings = BilinearSettings(rank=rank, mu_factor=mu_factor, mu=mu, min_mu=min_mu,
-                                init=init, gtol=gtol, max_iter=max_iter)
-    return _bilinear(W, R, K, prior, settings, progress)
-
-
-def solve_bilinear(W, R, K, prior, settings, progress=None):
-    """The shape stage's bilinear solver (:func:`optimize_shapes_bilinear`)."""
     return _bilinear(W, R, K, prior, settings, progress)
 
 
@@ -368,7 +290,7 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
         mu_n = float(st.mu) / scale
     gap, B0 = float("nan"), None
     if st.init == "closed_form" and r == K:
-        B0, ev = _nullspace_coefficients(Uw, sw, Rf, K)
+        B0, ev = nullspace_coefficients(Uw, sw, Rf, K)
         gap = float(ev[K]) if ev.size > K else float("nan")
         if not gap > NULLSPACE_GAP_MIN:
             what = (f"the prior decides: mu raised to at least min_mu = {st.min_mu:g} "
@@ -384,8 +306,7 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
 def _bilinear(W, R, K, prior, st, progress):
     """Set-up, start, L-BFGS (:func:`_minimise`) and the result in W's units."""
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
-    if prior not in PRIORS:
-        raise ValueError(f"unknown shape prior {prior!r}; expected organic, weighted or nuclear")
+    check_prior(prior)
     r = K if st.rank is None else st.rank
     if not 1 <= r <= min(F, 3 * P):
         raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {r!r}")
@@ -427,7 +348,7 @@ def _bilinear(W, R, K, prior, st, progress):
         mu=mu_n * scale, noise=noise * scale, N=1 if prior == "organic" else 0,
         prior=prior, solver="bilinear", B=B * math.sqrt(scale), C=C * math.sqrt(scale),
         objective=E * scale ** 2, wnn_objective=(data_exact + float(obj.reg @ s_x)) * scale ** 2,
-        optimality=rel, history={k: np.asarray(v) for k, v in obj.hist.items()},
+        optimality=rel, optimality_kind="gradient", history={k: np.asarray(v) for k, v in obj.hist.items()},
         n_iter=n_iter, converged=converged, params=params)
 
 

@@ -97,7 +97,10 @@ class ShapeResult:
         The solver's measure of optimality at the end: the ADMM's residual
         ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm, the constrained
         solver's relative ADMM gap (its KKT certificate is in ``params["kkt"]``); 0 for the
-        closed-form solutions.
+        closed-form solutions. ``optimality_kind`` names it.
+    optimality_kind : str
+        ``"gradient"`` where :attr:`optimality` is a relative gradient norm (then also
+        :attr:`grad_norm`), else a short name of the solver's measure.
     params : dict
         Every constant used, and solver-specific results (the constrained solver's ``eps``,
         ``residual``, ``chosen``, ``certified``, ``kkt``).
@@ -120,6 +123,7 @@ class ShapeResult:
     converged: bool = False
     objective: float = float("nan")
     optimality: float = float("nan")
+    optimality_kind: str = ""
     params: dict = field(default_factory=dict)
     weights: Optional[np.ndarray] = None
     mu: Optional[float] = None
@@ -130,6 +134,6 @@ class ShapeResult:
 
     @property
     def grad_norm(self):
-        """Relative gradient norm (:attr:`optimality` of the bilinear and closed-form
-        solvers); None for the others, whose optimality is measured otherwise."""
-        return self.optimality if self.solver in ("bilinear", "closed_form") else None
+        """Relative gradient norm (:attr:`optimality` where ``optimality_kind`` is
+        ``"gradient"``); None for the solvers whose optimality is measured otherwise."""
+        return self.optimality if self.optimality_kind == "gradient" else None

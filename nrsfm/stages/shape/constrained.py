@@ -16,7 +16,7 @@ With orthonormal camera rows R_f (2 x 3) and third row n_f, the exact-fit set (e
 for eps > 0 the in-plane part may move inside a ball (:func:`project_to_fit`, exact and
 cheap). The weights increase with i, so ``||.||_a`` is not convex.
 
-Solver (:func:`organic_fit_shapes`): ADMM with the paper's continuation of the penalty
+Solver (:func:`organic_fit`): ADMM with the paper's continuation of the penalty
 (rho grows by ``lam`` per iteration; Eq. 11-14 with the data term replaced by the
 constraint); one Gram eigenproblem of the shorter side of X# per iteration (F x 3P:
 3P x 3P). As for the paper's ADMM, the answer is where the continuation freezes, a point of
@@ -28,41 +28,91 @@ unique (:func:`rank_k_closed_form`): exact on exactly rank-K data, and a unique 
 rank-deficient data. When eps > 0 the ADMM's end point is then polished into a certified
 KKT point of (C) with rank(X#) <= r (:mod:`.constrained_polish`): the answer no longer
 depends on where the continuation froze. The closed form is the bilinear solver's
-(:func:`nrsfm.stages.shape.bilinear.closed_form_fit`).
+(:func:`nrsfm.stages.shape.closed_form.closed_form_fit`).
 
-:func:`solve_constrained` is the shape stage's entry (settings
-:class:`nrsfm.settings.ConstrainedSettings`, result :class:`ShapeResult`);
-:func:`organic_fit_shapes` the same solver with keywords and its own result type.
+:func:`solve_constrained` is the shape stage's entry (settings :class:`ConstrainedSettings`,
+result :class:`ShapeResult`); :func:`organic_fit` the same solver with its own result type.
+The exact-fit set and its projection: :mod:`.fit_set`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar, Optional
 
 import numpy as np
 
 from ...noise import noise_from_singular_values
-from ...settings import PRIORS, ConstrainedSettings
-from ...validation import check_K, check_measurements
-from .bilinear import NULLSPACE_GAP_MIN, bilinear_weights, closed_form_fit
+from ...validation import check_flag, check_integer, check_K, check_measurements, check_positive
+from .base import PRIORS, SolverSettings, check_prior
+from .bilinear import bilinear_weights
+from .closed_form import NULLSPACE_GAP_MIN, closed_form_fit
 from .common import ShapeResult, check_shape_inputs
 from .constrained_polish import rank_certificate, solve_kkt
+from .fit_set import apply_frames, project_to_fit, weighted_svt
 
-__all__ = ["OrganicFitResult", "exact_fit_shapes", "organic_fit_shapes", "organic_objective",
-           "organic_weights", "project_to_fit", "rank_k_closed_form", "residual_bound",
-           "solve_constrained", "weighted_svt"]
-
-
-def _apply(M, X):
-    """Per-frame product ``M_f X_f`` for M (F, a, b), X (F, b, P) as b broadcast
-    multiply-adds (numpy's batched matmul with tiny inner sizes is slow for large P)."""
-    out = M[:, :, 0, None] * X[:, None, 0, :]
-    for j in range(1, M.shape[2]):
-        out += M[:, :, j, None] * X[:, None, j, :]
-    return out
+__all__ = ["ConstrainedSettings", "OrganicFitResult", "organic_fit", "organic_objective",
+           "organic_weights", "rank_k_closed_form", "residual_bound", "solve_constrained"]
 
 
+
+@dataclass(frozen=True)
+class ConstrainedSettings(SolverSettings):
+    """Organic norm, W fitted to within its noise (``shape_solver="constrained"``).
+
+    Attributes
+    ----------
+    eps : float or None
+        Residual bound ``||W - R X||_F <= eps`` in W's units (default: the noise norm of W,
+        :func:`residual_bound`).
+    rho0, lam, rho_max : float
+        Initial ADMM penalty (times ``1 / sigma_1(X_init#)``), its growth per iteration
+        (> 1), its cap.
+    tol : float
+        Stop the ADMM when ``||Y - X#||_F < tol sigma_1(X_init#)``.
+    max_iter : int
+        Cap on ADMM iterations.
+    polish : bool
+        Polish the ADMM's end point into a KKT point of (C) (skipped when eps = 0 to
+        rounding, where the candidate step is exact).
+    gtol, rtol : float
+        The polish's tolerances: relative gradient norm of the factored (K) and
+        ``|log(residual / eps)|`` (:func:`.constrained_polish.solve_kkt`).
+    polish_max_iter : int
+        Cap on the polish's L-BFGS iterations.
+    rank : int or None
+        Factor rank of the polish (default: the larger of 3K and the ADMM point's rank).
+    """
+
+    name: ClassVar[str] = "constrained"
+    eps: Optional[float] = None
+    rho0: float = 1.0
+    lam: float = 1.1
+    rho_max: float = 1e10
+    tol: float = 1e-8
+    max_iter: int = 1000
+    polish: bool = True
+    gtol: float = 1e-8
+    rtol: float = 1e-5
+    polish_max_iter: int = 20000
+    rank: Optional[int] = None
+
+    def __post_init__(self):
+        if self.eps is not None:
+            check_positive("eps", self.eps, strict=False)
+        for name in ("rho0", "rho_max", "tol", "gtol", "rtol"):
+            check_positive(name, getattr(self, name))
+        if not self.lam > 1:
+            raise ValueError(f"lam must be > 1 (rho grows each iteration); got {self.lam!r}")
+        check_integer(self.max_iter, "max_iter", minimum=1)
+        check_integer(self.polish_max_iter, "polish_max_iter", minimum=1)
+        check_flag("polish", self.polish)
+        if self.rank is not None:
+            check_integer(self.rank, "rank", minimum=1)
+
+    def solve(self, W, R, K, prior, progress=None):
+        return solve_constrained(W, R, K, prior, self, progress)
 
 
 def organic_weights(sigma):
@@ -107,47 +157,6 @@ def organic_objective(X, a):
     return float(np.asarray(a)[:s.size] @ s)
 
 
-def exact_fit_shapes(W, R, Z):
-    """The exact-fit shapes ``X_f = R_f' W_f + n_f z_f'`` (n_f = r1 x r2).
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-    R : (F, 2, 3) or (F, 3, 3) ndarray, orthonormal rows
-    Z : (F, P) ndarray
-        Depths along each frame's viewing direction.
-
-    Returns
-    -------
-    X : (F, 3, P) ndarray, with ``R_f X_f = W_f`` for every f.
-    """
-    W, Rf, F, P = check_shape_inputs(W, R)
-    Z = np.asarray(Z, dtype=float)
-    if Z.shape != (F, P):
-        raise ValueError(f"Z must be (F, P) = ({F}, {P}); got shape {Z.shape}")
-    n = np.cross(Rf[:, 0], Rf[:, 1])
-    return _apply(Rf.transpose(0, 2, 1), W.reshape(F, 2, P)) + n[:, :, None] * Z[:, None, :]
-
-
-def project_to_fit(X, W, R, eps):
-    """Euclidean projection of X (F, 3, P) onto ``{X : ||W - R X||_F <= eps}``.
-
-    The in-plane part ``R_f X_f`` is pulled towards W_f (radially, all frames together) until
-    the residual is eps; the depth part is unchanged (exact: the rows of R_f are
-    orthonormal, so the map X -> R X is a partial isometry).
-    """
-    W, Rf, F, P = check_shape_inputs(W, R)
-    X = np.asarray(X, dtype=float)
-    if X.shape != (F, 3, P):
-        raise ValueError(f"X must be (F, 3, P) = ({F}, 3, {P}); got shape {X.shape}")
-    if not (np.isfinite(eps) and eps >= 0):
-        raise ValueError(f"eps must be finite and non-negative; got {eps!r}")
-    r = _apply(Rf, X) - W.reshape(F, 2, P)
-    nr = float(np.linalg.norm(r))
-    keep = 1.0 if nr <= eps else eps / nr
-    return X - (1.0 - keep) * _apply(Rf.transpose(0, 2, 1), r)
-
-
 def rank_k_closed_form(W, R, K):
     """Closed-form rank-K shape X (F, 3, P) fitting W (2F, P) in least squares, and its gap.
 
@@ -172,7 +181,7 @@ def rank_k_closed_form(W, R, K):
 
 @dataclass
 class OrganicFitResult:
-    """Result of :func:`organic_fit_shapes`.
+    """Result of :func:`organic_fit`.
 
     Attributes
     ----------
@@ -201,7 +210,7 @@ class OrganicFitResult:
     converged : bool
         True when the gap fell below ``tol``.
     chosen : {"kkt", "admm", "closed_form"}
-        Which feasible candidate had the lower objective (see :func:`organic_fit_shapes`):
+        Which feasible candidate had the lower objective (see :func:`organic_fit`):
         the KKT point polished from the ADMM's end point, the end point itself (when not
         polished), or the closed-form rank-K shape.
     candidate_objectives : dict
@@ -238,42 +247,7 @@ class OrganicFitResult:
     kkt: dict = field(default_factory=dict)
 
 
-def weighted_svt(M, thresholds):
-    """Weighted singular value thresholding ``U diag(max(s - t, 0)) V'`` of M (m, n).
-
-    For non-decreasing thresholds t this is the exact proximal operator of
-    ``sum_i t_i sigma_i`` (Gu et al., CVPR 2014; Oh et al.'s PSVT when ``t_1 = 0``).
-    Computed from the eigen-decomposition of the Gram matrix of M's shorter side (one
-    ``min(m, n)``-sized eigenproblem); the singular values lost to rounding there are
-    thresholded away by every positive t.
-
-    Parameters
-    ----------
-    M : (m, n) ndarray
-    thresholds : (>= min(m, n),) ndarray, non-negative, non-decreasing
-
-    Returns
-    -------
-    Y : (m, n) ndarray
-    s : (min(m, n),) ndarray
-        Thresholded singular values (decreasing).
-    """
-    tall = M.shape[0] >= M.shape[1]
-    G = M.T @ M if tall else M @ M.T
-    ev, V = np.linalg.eigh(G)
-    s = np.sqrt(np.maximum(ev[::-1], 0.0))
-    V = V[:, ::-1]
-    s_new = np.maximum(s - thresholds[:s.size], 0.0)
-    keep = s_new > 0
-    coef = s_new[keep] / s[keep]
-    Vk = V[:, keep]
-    Y = (M @ Vk * coef) @ Vk.T if tall else (Vk * coef) @ (Vk.T @ M)
-    return Y, s_new
-
-
-def organic_fit_shapes(W, R, K, *, eps=None, rho0=1.0, lam=1.1, rho_max=1e10, tol=1e-8,
-                       max_iter=1000, polish=True, gtol=1e-8, rtol=1e-5,
-                       polish_max_iter=20000, rank=None):
+def organic_fit(W, R, K, settings=None, prior="organic"):
     """Organic weighted nuclear norm with W fitted to within eps (module docstring, (C)).
 
     ADMM on ``minimise ||Y||_a  s.t.  Y = X#, ||W - R X|| <= eps`` with the paper's
@@ -302,24 +276,9 @@ def organic_fit_shapes(W, R, K, *, eps=None, rho0=1.0, lam=1.1, rho_max=1e10, to
         Cameras; the first two rows of each must be orthonormal.
     K : int
         Number of shape bases: sets eps (:func:`residual_bound`).
-    eps : float, optional
-        Residual bound in W's units (default :func:`residual_bound`).
-    rho0, lam, rho_max : float
-        Initial penalty (times ``1 / sigma_1(X_init#)``), its growth per iteration (> 1),
-        its cap.
-    tol : float
-    max_iter : int
-    polish : bool
-        Polish the ADMM's end point into a KKT point of (C) (skipped when eps = 0 to
-        rounding, where the candidate step is exact).
-    gtol, rtol : float
-        KKT tolerances: relative gradient norm of the factored (K) and
-        ``|log(residual / eps)|`` (:func:`.constrained_polish.solve_kkt`).
-    polish_max_iter : int
-        Cap on the polish's L-BFGS iterations.
-    rank : int, optional
-        Factor rank r of the polish (default: the larger of 3K and the numerical rank of
-        the ADMM's end point, see :func:`_polish`).
+    settings : ConstrainedSettings
+    prior : {"organic", "weighted", "nuclear"}
+        Weights a of (C) (:func:`nrsfm.stages.shape.bilinear.bilinear_weights`).
 
     Returns
     -------
@@ -330,14 +289,13 @@ def organic_fit_shapes(W, R, K, *, eps=None, rho0=1.0, lam=1.1, rho_max=1e10, to
     ValueError
         Bad shapes or values, non-orthonormal camera rows, W zero.
     """
-    settings = ConstrainedSettings(eps=eps, rho0=rho0, lam=lam, rho_max=rho_max, tol=tol,
-                                   max_iter=max_iter, polish=polish, gtol=gtol, rtol=rtol,
-                                   polish_max_iter=polish_max_iter, rank=rank)
-    return _organic_fit(W, R, K, settings)
+    st = ConstrainedSettings() if settings is None else settings
+    return _organic_fit(W, R, K, st, check_prior(prior))
 
 
 def solve_constrained(W, R, K, prior, settings, progress=None):
-    """The shape stage's ``constrained`` solver (:func:`organic_fit_shapes`).
+    """The shape stage's ``constrained`` solver (:func:`organic_fit` as a
+    :class:`ShapeResult`).
 
     Parameters
     ----------
@@ -350,7 +308,7 @@ def solve_constrained(W, R, K, prior, settings, progress=None):
     prior : {"organic", "weighted", "nuclear"}
         Weights a of (C) (:func:`nrsfm.stages.shape.bilinear.bilinear_weights`; the
         measurements in ``docs/shape_constrained.md`` are of ``organic``).
-    settings : nrsfm.settings.ConstrainedSettings
+    settings : ConstrainedSettings
     progress : callable(str) or None
 
     Returns
@@ -362,9 +320,7 @@ def solve_constrained(W, R, K, prior, settings, progress=None):
         holds every constant and ``eps``, ``residual``, ``chosen``,
         ``candidate_objectives``, ``certified`` and ``kkt`` (:class:`OrganicFitResult`).
     """
-    if prior not in PRIORS:
-        raise ValueError(f"unknown shape prior {prior!r}; expected one of {list(PRIORS)}")
-    res = _organic_fit(W, R, K, settings, prior)
+    res = _organic_fit(W, R, K, settings, check_prior(prior))
     F, P = res.shapes.shape[0], res.shapes.shape[2]
     if callable(progress):
         progress(f"shape (constrained, organic) stopped after {res.n_iter} ADMM iterations: "
@@ -377,14 +333,13 @@ def solve_constrained(W, R, K, prior, settings, progress=None):
         shapes=res.shapes, X_init=res.X_init, X_init_singular_values=res.X_init_singular_values,
         theta=res.weights, N=PRIORS[prior], prior=prior, solver="constrained", history=history,
         n_iter=res.n_iter, converged=res.converged, objective=res.objective,
-        optimality=res.optimality, params=params, weights=res.weights,
+        optimality=res.optimality, optimality_kind="admm gap", params=params, weights=res.weights,
         wnn_objective=res.objective,
         mu=res.kkt.get("mu"), noise=res.eps / math.sqrt(2 * F * P))
 
 
-def _organic_fit(W, R, K, st, prior="organic"):
-    """:func:`organic_fit_shapes` with checked settings st (ConstrainedSettings) and the
-    weights of ``prior``."""
+def _organic_fit(W, R, K, st, prior):
+    """The body of :func:`organic_fit`."""
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     eps, rho0, lam, rho_max, tol, max_iter = (st.eps, st.rho0, st.lam, st.rho_max, st.tol,
                                               st.max_iter)
@@ -411,7 +366,7 @@ def _organic_fit(W, R, K, st, prior="organic"):
         kkt["mu"] *= scale
         cand["admm"] = admm_objective
     X3 = Xr if Vt is None else (Xr.reshape(-1, Vt.shape[0]) @ Vt).reshape(F, 3, P)
-    Xi = _apply(Rf.transpose(0, 2, 1), Wn.reshape(F, 2, P))
+    Xi = apply_frames(Rf.transpose(0, 2, 1), Wn.reshape(F, 2, P))
     params = dict(prior=prior, K=K, eps_rule="residual_bound" if eps is None else "given",
                   rho0=rho0, lam=lam, rho_max=rho_max, tol=tol, max_iter=int(max_iter),
                   normalisation=scale, polish=polish, gtol=gtol, rtol=rtol,
@@ -421,7 +376,7 @@ def _organic_fit(W, R, K, st, prior="organic"):
     return OrganicFitResult(
         shapes=X3 * scale, X_init=Xi * scale, X_init_singular_values=sA * scale, weights=a,
         eps=eps_n * scale, objective=organic_objective(Xr, a) * scale,
-        residual=float(np.linalg.norm(_apply(Rf, X3) - Wn.reshape(F, 2, P))) * scale,
+        residual=float(np.linalg.norm(apply_frames(Rf, X3) - Wn.reshape(F, 2, P))) * scale,
         optimality=float(hist["gap"][-1]), history=hist, n_iter=it, converged=converged,
         chosen=chosen, candidate_objectives={k: v * scale for k, v in cand.items()},
         params=params, certified=certified, kkt=kkt)
@@ -460,7 +415,7 @@ def _row_space_coordinates(W):
 
 
 def _continuation_admm(W, Rf, eps, prior, rho0, lam, rho_max, tol, max_iter):
-    """The ADMM of :func:`organic_fit_shapes` on (W (2F, r), R_f): returns X (F, 3, r), the
+    """The ADMM of :func:`organic_fit` on (W (2F, r), R_f): returns X (F, 3, r), the
     weights, sigma(X_init#), the history, the iteration count and whether it converged."""
     F, r = W.shape[0] // 2, W.shape[1]
     Wf = W.reshape(F, 2, r)

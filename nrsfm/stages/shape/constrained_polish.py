@@ -20,7 +20,7 @@ Sec. 3). This module solves (K) on that factorisation:
   ``log mu`` from the multiplier estimate at the start (warm-started inner solves).
 
 The start is the ADMM's end point of
-:func:`nrsfm.stages.shape.constrained.organic_fit_shapes` (its rank r, at least 3K).
+:func:`nrsfm.stages.shape.constrained.organic_fit` (its rank r, at least 3K).
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ import math
 import numpy as np
 import scipy.optimize
 
-from .bilinear import balance_factors, c_step, frame_preconditioner
+from .bilinear import balance_factors, frame_preconditioner
+from .closed_form import c_step
 
 __all__ = ["factor_start", "multiplier_estimate", "rank_certificate", "solve_penalised",
            "solve_kkt"]

@@ -7,15 +7,30 @@ iterations.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import numpy as np
 
+from .base import SolverSettings
 from .common import ShapeResult, check_shape_inputs, phi, pseudo_inverse_shapes, truncate_rank
 
-__all__ = ["solve_pseudo_inverse"]
+__all__ = ["PseudoInverseSettings", "solve_pseudo_inverse"]
 
 
-def solve_pseudo_inverse(W, R, K, prior, settings, progress=None):
-    """The shape stage's rank-K pseudo-inverse (``prior`` and ``settings`` have no options).
+@dataclass(frozen=True)
+class PseudoInverseSettings(SolverSettings):
+    """Rank-K truncation of ``pinv(R) W`` (the ``pseudo_inverse`` method; no options)."""
+
+    name: ClassVar[str] = "pseudo_inverse"
+    uses_prior: ClassVar[bool] = False
+
+    def solve(self, W, R, K, prior=None, progress=None):
+        return solve_pseudo_inverse(W, R, K)
+
+
+def solve_pseudo_inverse(W, R, K):
+    """The shape stage's rank-K pseudo-inverse (no prior, no options).
 
     Returns
     -------
@@ -31,4 +46,4 @@ def solve_pseudo_inverse(W, R, K, prior, settings, progress=None):
                        X_init_singular_values=np.linalg.svd(phi(X_init), compute_uv=False),
                        theta=None, N=K, prior="none", solver="pseudo_inverse",
                        converged=True, objective=data,
-                       optimality=0.0, params=dict(K=K))
+                       optimality=0.0, optimality_kind="exact", params=dict(K=K))

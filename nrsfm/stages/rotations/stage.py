@@ -1,228 +1,109 @@
-"""Rotation stage (paper Sec. 3.1): triplets -> per-triplet rotations -> registration ->
-filtering -> per-frame L1 single rotation averaging -> depth signs.
-
-Conventions
------------
-* A triplet G (3K x 3) maps frame f's 2 x 3K block to ``M_f G = c_f R_f[:2]`` (a scaled
-  orthographic camera).  Lifting it to SO(3) (:func:`rotations_from_triplets`) gives
-  ``R_f`` when ``c_f > 0`` and ``diag(-1, -1, 1) R_f`` ("depth reversal" of frame f: the
-  same image with the shape negated) when ``c_f < 0``; a triplet may also come out with
-  the opposite handedness (``diag(1, 1, -1) R_f D``, D = diag(1, 1, -1)), which equals the
-  depth reversal of every frame times a fixed rotation, so the per-frame flips absorb it.
-* Registration (:func:`register_rotations`) solves Eq. 3 with one R_reg in SO(3) per
-  triplet plus a per-frame choice of I or diag(-1, -1, 1).
-* The final per-frame depth sign is chosen by motion smoothness (Dai's rule, see
-  :func:`resolve_depth_signs`); ``sign_from_smoothness`` flags the frames it changed.
-
-The K triplets (the paper says only "using Dai et al." for every k): the best one of the
-search and K - 1 refined on temporal windows. W of numerical rank r < 3K: the stage runs in
-the determined r-dimensional subspace of ``M_hat`` (:mod:`.rotation_select`).
-:func:`estimate_rotations` runs ``organic`` and ``bmm``
-(:class:`nrsfm.settings.RotationSettings`); research strategies (``family``: the family
-combination after the average, the default before issue 18): :mod:`nrsfm.ablation`.
-Measurements: ``docs/rotation_stage.md``.
+"""The rotation stage as one run: its settings, the triplets (the best one of the search
+and K - 1 refined on temporal windows), the steps on them, and its result.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import ClassVar, Optional
 
 import numpy as np
 
-from ..geometry import average_rotations, procrustes_so3, project_to_so3, rotation_angle
-from ..settings import RotationAblationSettings, RotationSettings
-from .corrective import corrective_triplets, refine_triplet, triplet_cost
-from .rotation_select import in_determined_subspace, lift_result
+from ...geometry import average_rotations
+from ...validation import (check_choice, check_flag, check_fraction, check_integer,
+                           check_positive)
+from ..corrective import corrective_triplets, refine_triplet, triplet_cost
+from .lifting import filter_rotations, register_rotations, resolve_depth_signs, \
+    rotations_from_triplets
+from .subspace import in_determined_subspace, lift_result
 
-__all__ = ["FLIP", "MIRROR", "RotationResult", "estimate_rotations", "filter_rotations",
-           "register_rotations", "register_triplets", "resolve_depth_signs",
-           "rotations_from_triplet_set", "rotations_from_triplets", "triplets_on_subsets",
-           "window_weights"]
+__all__ = ["MIN_WINDOW_FRAMES", "RotationResult", "RotationSettings", "estimate_rotations",
+           "register_triplets", "rotations_from_triplet_set", "run_rotation_stage",
+           "triplets_on_subsets", "window_weights"]
 
-FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
-MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
-#: a lifted frame is degenerate when |r1 x r2| is below this (parallel rows)
-DEGENERATE_CROSS = 1e-8
-#: ... or a row norm below this fraction of the largest camera scale
-DEGENERATE_ROW = 1e-12
 #: at least this many frames in a window triplet
 MIN_WINDOW_FRAMES = 8
 
 
-# --------------------------------------------------------------------------- lifting
-def rotations_from_triplets(M_hat, G, handedness=1):
-    """Per-triplet, per-frame rotations from ``M_f G^k``.
+@dataclass(frozen=True)
+class RotationSettings:
+    """Rotation stage of the ``organic`` and ``bmm`` methods.
 
-    Parameters
+    Attributes
     ----------
-    M_hat : (2F, 3K) ndarray
-    G : (m, 3K, 3) or (3K, 3) ndarray
-    handedness : {1, -1}
-        -1 negates the third column of every 2 x 3 block before lifting.
-
-    Returns
-    -------
-    R : (m, F, 3, 3) ndarray in SO(3)
-        Rows scaled to unit length, ``r3 = r1 x r2``, projected onto SO(3). Never NaN: a
-        frame where ``M_f G`` is degenerate (a zero row or parallel rows) gets the
-        identity and ``valid`` False.
-    coefficients : (m, F) ndarray
-        ``|c_fk|``: RMS norm of the two rows of ``M_f G^k``.
-    valid : (m, F) bool
-    """
-    G = np.asarray(G, float)
-    single = G.ndim == 2
-    if single:
-        G = G[None]
-    M = np.asarray(M_hat, float)
-    F = M.shape[0] // 2
-    B = np.einsum("ri,kij->krj", M, G).reshape(G.shape[0], F, 2, 3)
-    if handedness == -1:
-        B = B * np.array([1.0, 1.0, -1.0])
-    norms = np.linalg.norm(B, axis=3)                             # (m, F, 2)
-    coef = np.sqrt(0.5 * (norms ** 2).sum(axis=2))
-    scale = np.max(coef, axis=1, keepdims=True)
-    tiny = DEGENERATE_ROW * np.where(scale > 0, scale, 1.0)
-    ok_rows = norms > tiny[..., None]
-    U = B / np.where(ok_rows, norms, 1.0)[..., None]
-    r3 = np.cross(U[:, :, 0], U[:, :, 1])
-    valid = ok_rows.all(axis=2) & (np.linalg.norm(r3, axis=2) > DEGENERATE_CROSS)
-    L = np.concatenate([U, r3[:, :, None]], axis=2)
-    L = np.where(valid[..., None, None], L, np.eye(3))
-    R = project_to_so3(L)
-    coef = np.where(valid, coef, 0.0)
-    if single:
-        return R[0], coef[0], valid[0]
-    return R, coef, valid
-
-
-# --------------------------------------------------------------------------- registration
-def _register_one(R_ref, R_k, w, max_iter=20):
-    """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
-    # Start from the third rows (a frame's depth reversal leaves them unchanged):
-    # maximise sum_f w_f r3_ref . (R r3_k)  ->  N = sum_f w_f r3_ref r3_k'.
-    N = np.einsum("f,fi,fj->ij", w, R_ref[:, 2], R_k[:, 2])
-    R = procrustes_so3(N)
-    flips = np.zeros(len(R_k), bool)
-    for _ in range(max_iter):
-        X = R_k @ R.T                                               # R_k R_reg'
-        # flipping rows 1-2 of X changes trace(R_ref' X) by -2 (d1 + d2)
-        d12 = np.einsum("fij,fij->f", R_ref[:, :2], X[:, :2])
-        new_flips = d12 < 0
-        S = np.where(new_flips[:, None, None], FLIP @ R_k, R_k)
-        # refit: maximise sum_f w_f trace(R_ref' S R') = trace(R' N), N = sum w S' R_ref
-        N = np.einsum("f,fki,fkj->ij", w, S, R_ref).T
-        R_new = procrustes_so3(N)
-        if np.array_equal(new_flips, flips) and np.allclose(R_new, R, atol=1e-12):
-            flips, R = new_flips, R_new
-            break
-        flips, R = new_flips, R_new
-    S = np.where(flips[:, None, None], FLIP @ R_k, R_k)
-    cost = float(np.sum(w * np.sum((R_ref - S @ R.T) ** 2, axis=(1, 2))))
-    return R, flips, cost
-
-
-def register_rotations(R_ref, R_k, weights=None, handedness="both"):
-    """Register one triplet's rotations onto the reference (Eq. 3, flip-aware).
-
-    Minimises ``sum_f w_f || R_ref,f - s_f H(R_k,f) R_reg' ||_F^2`` over R_reg in SO(3),
-    per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"``, the
-    handedness ``H`` (identity, or ``R -> diag(1, 1, -1) R diag(1, 1, -1)``, the lift of
-    the mirrored 2 x 3 blocks). Closed-form SO(3) Procrustes started from the third rows,
-    then alternation between the flips and R_reg (converges in a few steps).
-
-    Parameters
-    ----------
-    R_ref, R_k : (F, 3, 3) ndarray
-    weights : (F,) ndarray, optional
-        0 leaves a frame out of the fit (its flip is still chosen).
-    handedness : {"both", "same"}
-
-    Returns
-    -------
-    registered : (F, 3, 3) ndarray
-        ``s_f H(R_k,f) R_reg'``.
-    R_reg : (3, 3) ndarray
-        In the sense of Eq. 3 (for the mirrored handedness, applied after the mirror).
-    flips : (F,) bool
-    mirrored : bool
-    cost : float
-    """
-    R_ref = np.asarray(R_ref, float)
-    R_k = np.asarray(R_k, float)
-    w = np.ones(len(R_k)) if weights is None else np.asarray(weights, float)
-    best = None
-    options = [False, True] if handedness == "both" else [False]
-    for mirrored in options:
-        Rk = MIRROR @ R_k @ MIRROR if mirrored else R_k
-        R, flips, cost = _register_one(R_ref, Rk, w)
-        if best is None or cost < best[3] - 1e-12:
-            best = (R, flips, mirrored, cost, Rk)
-    R, flips, mirrored, cost, Rk = best
-    S = np.where(flips[:, None, None], FLIP @ Rk, Rk)
-    return S @ R.T, R, flips, mirrored, cost
-
-
-# --------------------------------------------------------------------------- filtering
-def filter_rotations(registered, reference, delta=0.05, metric="angle", valid=None):
-    """Keep the samples within ``delta`` of the reference (paper: delta = 0.05).
-
-    Parameters
-    ----------
-    registered : (m, F, 3, 3) ndarray
-    reference : (F, 3, 3) ndarray
+    strategy : {"organic", "bmm"}
+        ``organic``: the best triplet plus K - 1 triplets refined on temporal windows,
+        registered, filtered, L1-averaged (the paper's averaging). ``bmm``: the best
+        triplet only (Dai et al.).
+    n_triplets : int or None
+        Triplets averaged (default K).
+    window : float
+        Window length of the K - 1 window triplets, a fraction of F.
     delta : float
-    metric : {"angle", "chordal"}
-        ``angle``: geodesic angle in radians, the metric the L1 average minimises (0.05 rad
-        = 2.9 degrees). ``chordal``: ``||R - R_ref||_F`` (= 2 sqrt(2) sin(angle / 2),
-        so 0.05 is 2.0 degrees).
-    valid : (m, F) bool, optional
-        Samples already known to be unusable.
-
-    Returns
-    -------
-    kept : (m, F) bool
-    distance : (m, F) ndarray
+        Filter threshold (rad, geodesic angle; paper: 0.05).
+    filter_against : {"average", "reference"} or None
+        Filter the samples against their L1 average, the reference triplet (paper), or not.
+    determined : bool
+        W of numerical rank r < 3K (singular values below 1e-6 s_1): solve the triplets in
+        the determined r-dimensional subspace of the motion factor (:mod:`.subspace`);
+        False: search all 3K rows of G.
+    max_iter, eps : int, float
+        Weiszfeld iterations and step tolerance of the L1 average (Alg. 1).
+    hits, max_starts : int
+        Stopping rule of the triplet search (:func:`nrsfm.stages.corrective.search_triplet`).
+    sdp_solver : {"admm", "cvxpy"}
+        Solver of the relaxation that gives the first starts.
+    refine : {"lm", "minpack", "lbfgs"}
+        Refinement of the triplets.
     """
-    if metric == "angle":
-        dist = rotation_angle(registered, reference[None])
-    elif metric == "chordal":
-        dist = np.linalg.norm(registered - reference[None], axis=(-2, -1))
-    else:
-        raise ValueError(f"unknown metric {metric!r}")
-    kept = dist <= delta
-    if valid is not None:
-        kept &= valid
-    return kept, dist
 
+    STRATEGIES: ClassVar[tuple] = ("organic", "bmm")
+    FILTERS: ClassVar[tuple] = ("average", "reference", None)
+    SDP_SOLVERS: ClassVar[tuple] = ("admm", "cvxpy")
+    REFINES: ClassVar[tuple] = ("lm", "minpack", "lbfgs")
 
-# --------------------------------------------------------------------------- depth sign
-def resolve_depth_signs(R):
-    """Per-frame depth sign by motion smoothness (Dai's rule).
+    strategy: str = "organic"
+    n_triplets: Optional[int] = None
+    window: float = 0.9
+    delta: float = 0.05
+    filter_against: Optional[str] = "average"
+    determined: bool = True
+    max_iter: int = 50
+    eps: float = 1e-3
+    hits: int = 2
+    max_starts: int = 40
+    sdp_solver: str = "admm"
+    refine: str = "lm"
 
-    Frame f is replaced by ``diag(-1, -1, 1) R_f`` when that is closer to the (resolved)
-    frame f - 1, i.e. when the two cameras' rows disagree by more than 90 degrees on
-    average (``r1.r1' + r2.r2' < 0``).
+    def __post_init__(self):
+        check_choice("rotation strategy", self.strategy, self.STRATEGIES)
+        if self.n_triplets is not None:
+            check_integer(self.n_triplets, "n_triplets", minimum=1)
+        check_fraction("window", self.window)
+        check_positive("delta", self.delta)
+        check_choice("filter_against", self.filter_against, self.FILTERS)
+        check_flag("determined", self.determined)
+        check_integer(self.max_iter, "max_iter", minimum=1)
+        check_positive("eps", self.eps, strict=False)
+        check_integer(self.hits, "hits", minimum=1)
+        check_integer(self.max_starts, "max_starts", minimum=1)
+        check_choice("sdp_solver", self.sdp_solver, self.SDP_SOLVERS)
+        check_choice("refine", self.refine, self.REFINES)
 
-    Returns
-    -------
-    R : (F, 3, 3) ndarray
-    flipped : (F,) bool, frames changed
-    """
-    R = np.array(R, float, copy=True)
-    F = len(R)
-    flipped = np.zeros(F, bool)
-    # d_f = agreement of frame f with frame f-1 (unresolved); resolving sequentially only
-    # needs the parity of the flips so far.
-    d = np.einsum("fij,fij->f", R[1:, :2], R[:-1, :2])
-    parity = np.cumsum(np.concatenate([[0], (d < 0).astype(int)])) % 2
-    flipped = parity.astype(bool)
-    R[flipped] = FLIP @ R[flipped]
-    return R, flipped
+    @classmethod
+    def preset(cls, strategy="organic"):
+        """The settings of a strategy (chosen by the measurements in
+        ``docs/rotation_stage.md``)."""
+        check_choice("rotation strategy", strategy, cls.STRATEGIES)
+        if strategy == "bmm":
+            return cls(strategy="bmm", window=0.5, filter_against="reference")
+        return cls(strategy=strategy)
 
+    def estimate(self, M_hat, K, seed=0, progress=None):
+        """Run the rotation stage with these settings (:func:`estimate_rotations`)."""
+        return run_rotation_stage(M_hat, K, self, seed, progress, production_triplets)
 
-# --------------------------------------------------------------------------- windows
 def window_weights(F, n_windows, window):
     """Frame weights of ``n_windows`` contiguous temporal windows of ``window * F`` frames
     (at least :data:`MIN_WINDOW_FRAMES`), starts spread evenly from the first to the last
@@ -379,12 +260,6 @@ def register_triplets(per_triplet, valid):
                                           registration_cost=reg_cost)
 
 
-def sample_weights(coef, valid, settings):
-    """Step 4a: the usable samples (validly lifted) and their weights in the average (1)."""
-    usable = valid.copy()
-    return usable, np.where(usable, 1.0, 0.0)
-
-
 def filter_samples(registered, usable, weights, settings, metric="angle"):
     """Step 4b: keep the samples within ``settings.delta`` of the reference triplet's
     rotations or of the L1 average of all samples (``settings.filter_against``); a frame
@@ -420,11 +295,12 @@ class _Clock:
 
 
 def rotations_from_triplet_set(M, K, G, settings, *, info, timings, say, seed=0,
-                               weigh=sample_weights, average=average_samples, refit=None,
+                               weigh=None, average=average_samples, refit=None,
                                combine=None, metric="angle"):
     """Steps 2-7 for given triplets G (m, 3K, 3): lift, register, filter, average,
-    (refit, combine), depth signs. ``weigh``, ``average``, ``refit``, ``combine`` and
-    ``metric`` are the replaceable steps (:mod:`nrsfm.ablation` passes its variants)."""
+    (refit, combine), depth signs. ``weigh(coefficients, valid) -> (usable, weights)``
+    (default: the validly lifted samples, weight 1), ``average``, ``refit``, ``combine``
+    and ``metric`` are the replaceable steps (:mod:`nrsfm.research` passes its variants)."""
     clock = _Clock(timings)
     info["triplet_costs"] = np.array([triplet_cost(g, M) for g in G])
     per_triplet, coef, valid = rotations_from_triplets(M, G)
@@ -432,7 +308,10 @@ def rotations_from_triplet_set(M, K, G, settings, *, info, timings, say, seed=0,
     registered, registration, reg_info = register_triplets(per_triplet, valid)
     info.update(reg_info)
     clock.lap("registration")
-    usable, weights = weigh(coef, valid, settings)
+    if weigh is None:                                      # step 4a: usable samples
+        usable, weights = valid.copy(), valid.astype(float)
+    else:
+        usable, weights = weigh(coef, valid)
     kept, dist = filter_samples(registered, usable, weights, settings, metric)
     info.update(filter_distance=dist)
     clock.lap("filtering")
@@ -467,7 +346,7 @@ def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
     M_hat : (2F, 3K) ndarray
         The motion factor of the measurement stage (:mod:`nrsfm.stages.measurement`).
     K : int
-    settings : nrsfm.settings.RotationSettings, optional
+    settings : RotationSettings, optional
         Default ``RotationSettings()`` (``organic``): the best triplet (the search of
         :func:`nrsfm.stages.corrective.corrective_triplets`) plus K - 1 triplets refined
         on temporal windows of 90% of the frames; register (flip-aware Eq. 3), filter at
@@ -487,15 +366,17 @@ def estimate_rotations(M_hat, K, settings=None, seed=0, progress=None):
     Raises
     ------
     ValueError
-        Research settings (run them with :func:`nrsfm.ablation.estimate_rotations_ablation`),
-        or M_hat not (2F, 3K).
+        Settings that are not a RotationSettings, or M_hat not (2F, 3K).
+
+    Notes
+    -----
+    The settings run themselves (``settings.estimate``): the research strategies of
+    :mod:`nrsfm.research` derive from :class:`RotationSettings` and run here too.
     """
     settings = RotationSettings() if settings is None else settings
-    if isinstance(settings, RotationAblationSettings) or \
-            not isinstance(settings, RotationSettings):
-        raise ValueError("estimate_rotations runs RotationSettings (organic, bmm); research "
-                         "settings run through nrsfm.ablation.estimate_rotations_ablation")
-    return run_rotation_stage(M_hat, K, settings, seed, progress, production_triplets)
+    if not isinstance(settings, RotationSettings):
+        raise ValueError(f"settings must be a RotationSettings; got {settings!r}")
+    return settings.estimate(M_hat, K, seed, progress)
 
 
 def run_rotation_stage(M_hat, K, settings, seed, progress, find_triplets, **steps):

@@ -1,4 +1,5 @@
-"""Rotation-stage rules that make the result one answer (issue 18).
+"""The determined subspace of the motion factor: the rotation-stage rule that makes the
+result one answer when W has numerical rank below 3K.
 
 * :func:`determined_subspace`: the part of the motion factor that W determines. When W has
   numerical rank r below 3K (a rigid or planar part, K larger than the data needs, shark),
@@ -8,11 +9,8 @@
   ``G = V_r G_r``).
 * :func:`effective_K`: the number of shape bases whose cameras the subspace can hold.
 * :func:`in_determined_subspace` / :func:`lift_result`: the rotation stage's entry and exit
-  (both rotation entry points, :mod:`nrsfm.stages.rotations` and :mod:`nrsfm.ablation`).
+  (:func:`nrsfm.stages.rotations.run_rotation_stage`).
 * :func:`lower_minimum`: a failed triplet search against a model that does not fit exactly.
-* :func:`rotation_candidates`, :func:`select_by_shape_objective`,
-  :func:`depth_sensitivity`: the rotations that serve the shape, and whether the camera
-  motion determines the depth.
 """
 
 from __future__ import annotations
@@ -21,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DETERMINED_RTOL", "Subspace", "depth_sensitivity", "determined_subspace",
-           "effective_K", "in_determined_subspace", "lift_result", "lift_triplets",
-           "lower_minimum", "rotation_candidates", "select_by_shape_objective",
-           "shape_objective"]
+from ..corrective import search_triplet
+
+__all__ = ["DETERMINED_RTOL", "Subspace", "determined_subspace", "effective_K",
+           "in_determined_subspace", "lift_result", "lift_triplets", "lower_minimum"]
 
 #: singular values of W below ``DETERMINED_RTOL * s_1`` count as zero (a numerical
 #: tolerance: float64 rounding leaves about 1e-16 s_1, perturbations of 1e-7 of W's entries
@@ -194,109 +192,8 @@ def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
     best : float
         The lowest cost the extra starts reached.
     """
-    from .corrective import search_triplet
-
     sub = determined_subspace(M_hat)
     _, costs, _ = search_triplet(sub.M, effective_K(sub.rank, K), seed=seed + 1,
                                  hits=n_starts + 1, max_starts=n_starts, lams=())
     best = float(costs[0])
     return bool(best < cost * (1.0 - rtol)), best
-
-
-def rotation_candidates(rotation_stage):
-    """Rotation sets the shape stage may use: the stage's own result, then the best triplet's.
-
-    The averaged rotations (paper Sec. 3.1) are closer to the truth on the benchmark, but
-    the shapes they give are not always better (stretch: e3d 1.07 x that of the best single
-    triplet's rotations, ground-truth rotations 1.02 x): the shape is chosen by its own
-    objective instead (:func:`select_by_shape_objective`).
-
-    Parameters
-    ----------
-    rotation_stage : RotationResult
-
-    Returns
-    -------
-    list of (name, (F, 3, 3) ndarray)
-        One entry when the stage used a single triplet.
-    """
-    from .rotations import resolve_depth_signs
-
-    out = [(rotation_stage.strategy, rotation_stage.rotations)]
-    if rotation_stage.G.shape[0] > 1:
-        single, _ = resolve_depth_signs(rotation_stage.per_triplet[0])
-        out.append(("single_triplet", single))
-    return out
-
-
-def shape_objective(shape_result):
-    """The shape prior's objective at a shape stage's result (None if it has none).
-
-    ``1/2 ||W - R X||^2 + sum_i theta_i sigma_i(X#)`` (Eq. 10 with the weighted nuclear
-    norm) for the bilinear solver; the last ``cost`` of the ADMM's history otherwise.
-    """
-    value = getattr(shape_result, "wnn_objective", None)
-    if value is None:
-        history = getattr(shape_result, "history", None) or {}
-        cost = history.get("cost") if isinstance(history, dict) else None
-        value = None if cost is None or len(cost) == 0 else cost[-1]
-    return None if value is None or not np.isfinite(value) else float(value)
-
-
-def select_by_shape_objective(candidates, solve):
-    """The rotations whose shapes reach the lowest shape objective (deterministic).
-
-    Parameters
-    ----------
-    candidates : list of (name, (F, 3, 3) ndarray)
-        From :func:`rotation_candidates`; ties keep the earlier entry.
-    solve : callable
-        ``solve(R)`` -> a shape result (same W, K, prior and solver for every candidate).
-
-    Returns
-    -------
-    index : int
-    results : list
-        The shape result of each candidate.
-    objectives : list of float or None
-    """
-    results = [solve(R) for _, R in candidates]
-    objectives = [shape_objective(r) for r in results]
-    index = 0
-    if all(v is not None for v in objectives):
-        index = int(np.argmin(objectives))         # first minimum on ties
-    return index, results, objectives
-
-
-def depth_sensitivity(candidates, results):
-    """How much the shapes move per unit of rotation change between two rotation sets.
-
-    ``e3d(X_a, X_b) / e_R(R_a, R_b)`` for the first two candidates (per-frame similarity
-    alignment of the shapes, one global alignment of the rotations). Where the camera
-    motion determines depth, two nearby rotation estimates give nearly the same shapes
-    (original cameras: pickup 0.0021 / 0.0227 = 0.09, stretch 0.018 / 0.046 = 0.38);
-    where it does not, the shapes follow the rotations (the same shapes re-projected by a
-    camera turning 62 degrees: pickup 0.062 / 0.030 = 2.1, stretch 0.36 / 0.072 = 5.0;
-    e3d 0.18 and 0.25 even with the exact rotations). Measured with the family-combined
-    rotations as the first candidate.
-
-    Parameters
-    ----------
-    candidates : list of (name, (F, 3, 3) ndarray)
-    results : list of shape results (``.shapes`` (F, 3, P))
-
-    Returns
-    -------
-    dict or None
-        ``shape_change``, ``rotation_change``, ``ratio``; None with fewer than two
-        candidates or identical rotations.
-    """
-    from ..metrics import e3d, rotation_error
-
-    if len(candidates) < 2:
-        return None
-    dR = rotation_error(candidates[0][1], candidates[1][1])
-    dX = e3d(results[1].shapes, results[0].shapes)
-    if not dR > 1e-12:
-        return None
-    return dict(shape_change=float(dX), rotation_change=float(dR), ratio=float(dX / dR))

@@ -1,5 +1,5 @@
 """The family combination: a research step after the rotation average (strategy ``family``
-of :mod:`nrsfm.ablation`, the ``organic`` default before issue 18).
+of :mod:`nrsfm.research.rotations`, the ``organic`` default before issue 18).
 
 For fixed rotations the triplets consistent with them form a K-dimensional linear family
 (:func:`triplet_family`); the K family triplets see ``M_f`` through different directions
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import procrustes_so3, project_to_so3, rotation_angle
+from ..geometry import procrustes_so3, project_to_so3, rotation_angle
 
 __all__ = ["combine_family", "combine_triplets", "triplet_family"]
 

@@ -1,15 +1,17 @@
-"""Research variants that no method uses by default, kept runnable for the ablations.
+"""Research rotation variants that no method uses by default, kept runnable for the
+ablations.
 
-The production path (:mod:`nrsfm.stages`) runs the ``organic`` and ``bmm`` rotation
+The production path (:mod:`nrsfm.stages`, which never imports this package) runs the ``organic`` and ``bmm`` rotation
 strategies with the triplet search; this module holds what the measurements in
 ``docs/rotation_stage.md`` compared them with, built from the same stage functions:
 
-* rotation strategies ``family`` (:mod:`nrsfm.ablation_family`), ``literal``,
+* rotation strategies ``family`` (:mod:`nrsfm.research.family`), ``literal``,
   ``multistart``, ``windows``, ``bootstrap`` and the step
   variants (chordal filter metric, camera-scale gate and weights, bootstrap or random frame
   subsets, chordal L2 average, refit onto one triplet):
-  :func:`estimate_rotations_ablation` with a :class:`nrsfm.settings.RotationAblationSettings`
-  (``reconstruct(..., rotation_options=dict(strategy="literal"))`` runs it);
+  :func:`estimate_rotations_ablation` with a
+  :class:`nrsfm.research.settings.RotationAblationSettings`
+  (``reconstruct(W, K, settings=research_settings("literal"))`` runs it);
 * triplet starts other than the search: Dai's relaxation as specified
   (:func:`solution_space`, :func:`relaxed_gram`), its column blocks and a screened
   multistart (:func:`corrective_triplets_from`);
@@ -23,15 +25,15 @@ import time
 
 import numpy as np
 
-from .ablation_family import combine_family, combine_triplets, triplet_family
-from .geometry import project_to_so3
-from .settings import RotationAblationSettings, RotationSettings
-from .stages.corrective import (CorrectiveResult, _normalise_triplet, constraint_matrix,
+from ..geometry import project_to_so3
+from ..stages.corrective import (CorrectiveResult, _normalise_triplet, constraint_matrix,
                                 corrective_triplets, gram_from_vech, penalized_gram,
                                 refine_triplet, triplet_cost, triplets_from_gram)
-from .stages.rotations import (MIN_WINDOW_FRAMES, average_samples, record_search,
-                               rotations_from_triplets, run_rotation_stage, sample_weights,
-                               triplets_on_subsets, window_weights)
+from ..stages.rotations import (RotationSettings, rotations_from_triplets,
+                                run_rotation_stage, triplets_on_subsets, window_weights)
+from ..stages.rotations.stage import MIN_WINDOW_FRAMES, average_samples, record_search
+from .family import combine_family, combine_triplets, triplet_family
+from .settings import RotationAblationSettings
 
 __all__ = ["STRATEGIES", "chordal_mean", "combine_family", "corrective_triplets_from",
            "estimate_rotations_ablation", "relaxed_gram", "row_space_residual",
@@ -83,7 +85,7 @@ def estimate_rotations_ablation(M_hat, K, settings=None, seed=0, progress=None):
         settings = RotationAblationSettings(**dataclasses.asdict(settings))
     return run_rotation_stage(
         M_hat, K, settings, seed, progress, _ablation_triplets,
-        weigh=_gated_weights, average=_average, metric=settings.filter_metric,
+        weigh=lambda coef, valid: _gated_weights(coef, valid, settings), average=_average, metric=settings.filter_metric,
         refit=_refit if settings.refit else None,
         combine=combine_triplets if settings.combine == "family" else None)
 
@@ -136,7 +138,7 @@ def _gated_weights(coef, valid, s):
     """Samples gated by camera scale, ``|c_fk| >= coef_gate * median_f |c_fk|``, and
     weighted by ``|c_fk| / median_f |c_fk|`` with ``coef_weights``."""
     if s.coef_gate == 0 and not s.coef_weights:
-        return sample_weights(coef, valid, s)
+        return valid.copy(), valid.astype(float)
     med = np.array([np.median(c[v]) if v.any() else 0.0 for c, v in zip(coef, valid)])
     rel = coef / np.where(med > 0, med, 1.0)[:, None]     # |c_fk| / median_f |c_fk|
     rel = np.where(valid & np.isfinite(rel), rel, 0.0)

@@ -1,0 +1,195 @@
+"""Steps of the rotation stage on given triplets: lifting ``M_f G^k`` to SO(3), registration
+(Eq. 3), filtering, and the depth sign by motion smoothness. Conventions: the docstring of
+:mod:`nrsfm.stages.rotations`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...geometry import procrustes_so3, project_to_so3, rotation_angle
+
+__all__ = ["DEGENERATE_CROSS", "DEGENERATE_ROW", "FLIP", "MIRROR", "filter_rotations",
+           "register_rotations", "resolve_depth_signs", "rotations_from_triplets"]
+
+FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
+MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
+#: a lifted frame is degenerate when |r1 x r2| is below this (parallel rows)
+DEGENERATE_CROSS = 1e-8
+#: ... or a row norm below this fraction of the largest camera scale
+DEGENERATE_ROW = 1e-12
+
+
+# --------------------------------------------------------------------------- lifting
+def rotations_from_triplets(M_hat, G, handedness=1):
+    """Per-triplet, per-frame rotations from ``M_f G^k``.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    G : (m, 3K, 3) or (3K, 3) ndarray
+    handedness : {1, -1}
+        -1 negates the third column of every 2 x 3 block before lifting.
+
+    Returns
+    -------
+    R : (m, F, 3, 3) ndarray in SO(3)
+        Rows scaled to unit length, ``r3 = r1 x r2``, projected onto SO(3). Never NaN: a
+        frame where ``M_f G`` is degenerate (a zero row or parallel rows) gets the
+        identity and ``valid`` False.
+    coefficients : (m, F) ndarray
+        ``|c_fk|``: RMS norm of the two rows of ``M_f G^k``.
+    valid : (m, F) bool
+    """
+    G = np.asarray(G, float)
+    single = G.ndim == 2
+    if single:
+        G = G[None]
+    M = np.asarray(M_hat, float)
+    F = M.shape[0] // 2
+    B = np.einsum("ri,kij->krj", M, G).reshape(G.shape[0], F, 2, 3)
+    if handedness == -1:
+        B = B * np.array([1.0, 1.0, -1.0])
+    norms = np.linalg.norm(B, axis=3)                             # (m, F, 2)
+    coef = np.sqrt(0.5 * (norms ** 2).sum(axis=2))
+    scale = np.max(coef, axis=1, keepdims=True)
+    tiny = DEGENERATE_ROW * np.where(scale > 0, scale, 1.0)
+    ok_rows = norms > tiny[..., None]
+    U = B / np.where(ok_rows, norms, 1.0)[..., None]
+    r3 = np.cross(U[:, :, 0], U[:, :, 1])
+    valid = ok_rows.all(axis=2) & (np.linalg.norm(r3, axis=2) > DEGENERATE_CROSS)
+    L = np.concatenate([U, r3[:, :, None]], axis=2)
+    L = np.where(valid[..., None, None], L, np.eye(3))
+    R = project_to_so3(L)
+    coef = np.where(valid, coef, 0.0)
+    if single:
+        return R[0], coef[0], valid[0]
+    return R, coef, valid
+
+
+# --------------------------------------------------------------------------- registration
+def _register_one(R_ref, R_k, w, max_iter=20):
+    """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
+    # Start from the third rows (a frame's depth reversal leaves them unchanged):
+    # maximise sum_f w_f r3_ref . (R r3_k)  ->  N = sum_f w_f r3_ref r3_k'.
+    N = np.einsum("f,fi,fj->ij", w, R_ref[:, 2], R_k[:, 2])
+    R = procrustes_so3(N)
+    flips = np.zeros(len(R_k), bool)
+    for _ in range(max_iter):
+        X = R_k @ R.T                                               # R_k R_reg'
+        # flipping rows 1-2 of X changes trace(R_ref' X) by -2 (d1 + d2)
+        d12 = np.einsum("fij,fij->f", R_ref[:, :2], X[:, :2])
+        new_flips = d12 < 0
+        S = np.where(new_flips[:, None, None], FLIP @ R_k, R_k)
+        # refit: maximise sum_f w_f trace(R_ref' S R') = trace(R' N), N = sum w S' R_ref
+        N = np.einsum("f,fki,fkj->ij", w, S, R_ref).T
+        R_new = procrustes_so3(N)
+        if np.array_equal(new_flips, flips) and np.allclose(R_new, R, atol=1e-12):
+            flips, R = new_flips, R_new
+            break
+        flips, R = new_flips, R_new
+    S = np.where(flips[:, None, None], FLIP @ R_k, R_k)
+    cost = float(np.sum(w * np.sum((R_ref - S @ R.T) ** 2, axis=(1, 2))))
+    return R, flips, cost
+
+
+def register_rotations(R_ref, R_k, weights=None, handedness="both"):
+    """Register one triplet's rotations onto the reference (Eq. 3, flip-aware).
+
+    Minimises ``sum_f w_f || R_ref,f - s_f H(R_k,f) R_reg' ||_F^2`` over R_reg in SO(3),
+    per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"``, the
+    handedness ``H`` (identity, or ``R -> diag(1, 1, -1) R diag(1, 1, -1)``, the lift of
+    the mirrored 2 x 3 blocks). Closed-form SO(3) Procrustes started from the third rows,
+    then alternation between the flips and R_reg (converges in a few steps).
+
+    Parameters
+    ----------
+    R_ref, R_k : (F, 3, 3) ndarray
+    weights : (F,) ndarray, optional
+        0 leaves a frame out of the fit (its flip is still chosen).
+    handedness : {"both", "same"}
+
+    Returns
+    -------
+    registered : (F, 3, 3) ndarray
+        ``s_f H(R_k,f) R_reg'``.
+    R_reg : (3, 3) ndarray
+        In the sense of Eq. 3 (for the mirrored handedness, applied after the mirror).
+    flips : (F,) bool
+    mirrored : bool
+    cost : float
+    """
+    R_ref = np.asarray(R_ref, float)
+    R_k = np.asarray(R_k, float)
+    w = np.ones(len(R_k)) if weights is None else np.asarray(weights, float)
+    best = None
+    options = [False, True] if handedness == "both" else [False]
+    for mirrored in options:
+        Rk = MIRROR @ R_k @ MIRROR if mirrored else R_k
+        R, flips, cost = _register_one(R_ref, Rk, w)
+        if best is None or cost < best[3] - 1e-12:
+            best = (R, flips, mirrored, cost, Rk)
+    R, flips, mirrored, cost, Rk = best
+    S = np.where(flips[:, None, None], FLIP @ Rk, Rk)
+    return S @ R.T, R, flips, mirrored, cost
+
+
+# --------------------------------------------------------------------------- filtering
+def filter_rotations(registered, reference, delta=0.05, metric="angle", valid=None):
+    """Keep the samples within ``delta`` of the reference (paper: delta = 0.05).
+
+    Parameters
+    ----------
+    registered : (m, F, 3, 3) ndarray
+    reference : (F, 3, 3) ndarray
+    delta : float
+    metric : {"angle", "chordal"}
+        ``angle``: geodesic angle in radians, the metric the L1 average minimises (0.05 rad
+        = 2.9 degrees). ``chordal``: ``||R - R_ref||_F`` (= 2 sqrt(2) sin(angle / 2),
+        so 0.05 is 2.0 degrees).
+    valid : (m, F) bool, optional
+        Samples already known to be unusable.
+
+    Returns
+    -------
+    kept : (m, F) bool
+    distance : (m, F) ndarray
+    """
+    if metric == "angle":
+        dist = rotation_angle(registered, reference[None])
+    elif metric == "chordal":
+        dist = np.linalg.norm(registered - reference[None], axis=(-2, -1))
+    else:
+        raise ValueError(f"unknown metric {metric!r}")
+    kept = dist <= delta
+    if valid is not None:
+        kept &= valid
+    return kept, dist
+
+
+# --------------------------------------------------------------------------- depth sign
+def resolve_depth_signs(R):
+    """Per-frame depth sign by motion smoothness (Dai's rule).
+
+    Frame f is replaced by ``diag(-1, -1, 1) R_f`` when that is closer to the (resolved)
+    frame f - 1, i.e. when the two cameras' rows disagree by more than 90 degrees on
+    average (``r1.r1' + r2.r2' < 0``).
+
+    Returns
+    -------
+    R : (F, 3, 3) ndarray
+    flipped : (F,) bool, frames changed
+    """
+    R = np.array(R, float, copy=True)
+    F = len(R)
+    flipped = np.zeros(F, bool)
+    # d_f = agreement of frame f with frame f-1 (unresolved); resolving sequentially only
+    # needs the parity of the flips so far.
+    d = np.einsum("fij,fij->f", R[1:, :2], R[:-1, :2])
+    parity = np.cumsum(np.concatenate([[0], (d < 0).astype(int)])) % 2
+    flipped = parity.astype(bool)
+    R[flipped] = FLIP @ R[flipped]
+    return R, flipped
+
+
+# --------------------------------------------------------------------------- windows

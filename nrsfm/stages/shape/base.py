@@ -1,0 +1,74 @@
+"""What every shape solver declares: the priors, the base of the solvers' settings and the
+registry the settings fill.
+
+A solver is one module holding a frozen dataclass deriving from :class:`SolverSettings`
+with a ``name`` and a ``solve`` method; defining the class registers it in
+:data:`SOLVERS` (``reconstruct(shape_solver=name)`` then runs it). The modules of this
+package are imported by :mod:`nrsfm.stages.shape`, so a solver written there is found
+without any list to edit; a solver written elsewhere registers when its module is imported.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from ...validation import check_choice
+
+__all__ = ["PRIORS", "SOLVERS", "SolverSettings", "check_prior"]
+
+#: Shape priors: prior -> N, the leading singular values left unpenalised. ``organic``:
+#: the partial sum of the weighted singular values (paper Eq. 10, N = 1); ``weighted``:
+#: every singular value weighted (Eq. 8); ``nuclear``: the plain nuclear norm (Eq. 7).
+PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
+
+#: name -> settings class of every registered shape solver (filled by the subclasses of
+#: :class:`SolverSettings`).
+SOLVERS: dict = {}
+
+
+def check_prior(prior):
+    """``prior`` if it is one of :data:`PRIORS`; ValueError naming the choices otherwise."""
+    return check_choice("shape prior", prior, PRIORS)
+
+
+class SolverSettings:
+    """Base of the shape solvers' settings.
+
+    A subclass sets the class attributes ``name`` (its registered name) and ``uses_prior``
+    (False for the solvers that take no prior: their :class:`ShapeSettings` prior is None),
+    and implements ``solve``. Defining the subclass registers it in :data:`SOLVERS`.
+    """
+
+    name: ClassVar[str] = ""
+    uses_prior: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        name = cls.__dict__.get("name")
+        if not name:
+            return
+        old = SOLVERS.get(name)
+        if old is not None and (old.__module__, old.__qualname__) != \
+                (cls.__module__, cls.__qualname__):
+            raise ValueError(f"shape solver {name!r} is registered already "
+                             f"({old.__module__}.{old.__qualname__})")
+        SOLVERS[name] = cls
+
+    def solve(self, W, R, K, prior, progress=None):
+        """Solve the shape stage.
+
+        Parameters
+        ----------
+        W : (2F, P) ndarray
+            Row-centred measurements.
+        R : (F, 3, 3) or (F, 2, 3) ndarray
+        K : int
+        prior : str or None
+            One of :data:`PRIORS`; None for a solver with ``uses_prior = False``.
+        progress : callable(str) or None
+
+        Returns
+        -------
+        nrsfm.stages.shape.ShapeResult
+        """
+        raise NotImplementedError(f"{type(self).__name__} does not implement solve")

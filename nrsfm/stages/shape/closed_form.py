@@ -1,0 +1,131 @@
+"""The closed-form rank-K solution of ``R X = W`` (the nullspace method of Valmadre,
+Sridharan, Denman, Fookes, Lucey, "Closed-form solutions for low-rank non-rigid
+reconstruction", DICTA 2015), written here from the maths; the start of the bilinear solver
+and the ``closed_form`` shape solver (:class:`nrsfm.stages.shape.bilinear.ClosedFormSettings`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from .common import check_shape_inputs
+
+__all__ = ["NULLSPACE_GAP_MIN", "c_step", "closed_form_coefficients", "closed_form_fit",
+           "closed_form_shapes", "nullspace_coefficients"]
+
+#: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
+NULLSPACE_GAP_MIN = 1e-12
+
+
+def closed_form_coefficients(W, R, K):
+    """Rank-K shape coefficients B (F, K) by the nullspace method (Valmadre et al. 2015).
+
+    With ``W ~ M_hat B_hat`` (rank 3K SVD, ``M_hat`` 2F x 3K), an exact rank-K shape
+    ``X_f = sum_k b_fk S_k`` means ``M_hat_f G_k = b_fk R_f`` for a 3K x 3 triplet
+    ``G_k`` per basis. This is linear and homogeneous in ``(G_k, b_1k .. b_Fk)``; eliminating
+    ``b_fk = <R_f, M_hat_f G_k> / 2`` leaves ``sum_f ||(I - r_f r_f' / 2) vec(M_hat_f G)||^2``,
+    a 9K x 9K quadratic form whose K-dimensional nullspace holds every triplet. Its K
+    smallest eigenvectors give B (up to an invertible K x K mixing, which does not change X).
+
+    Returns
+    -------
+    B : (F, K) ndarray
+    eigenvalues : (K + 1,) ndarray
+        The K + 1 smallest eigenvalues of the quadratic form (relative to the largest):
+        K near-zero values and a clear gap mean the rank-K solution is determined.
+    """
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
+    return nullspace_coefficients(U, s, Rf, K)
+
+
+def nullspace_coefficients(U, s, Rf, K):
+    """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
+    F = Rf.shape[0]
+    s = s / s[0]
+    M = (U[:, :3 * K] * s[:3 * K]).reshape(F, 2, 3 * K)     # M_hat_f, (F, 2, 3K)
+    # vec(M_f G) for G (3K, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
+    MtM = np.einsum("fai,faj->ij", M, M)
+    Q = np.kron(MtM, np.eye(3))
+    # A_f' r_f = vec(M_f' R_f) (3K x 3)
+    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 9 * K)
+    Q -= 0.5 * v.T @ v
+    evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
+    G = evecs[:, :K]                                          # (9K, K)
+    B = 0.5 * v @ G                                           # b_fk = <R_f, M_f G_k> / 2
+    return B, evals[:K + 1] / max(evals[-1], 1e-300)
+
+
+def closed_form_shapes(W, R, K):
+    """Closed-form rank-K shape: coefficients by :func:`closed_form_coefficients`, bases
+    by linear least squares.
+
+    Exact (to rounding) when W is exactly ``R X`` with ``rank X# = K`` and the solution is
+    unique; otherwise a least-squares approximation, used as a starting point.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements.
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+
+    Returns
+    -------
+    X : (F, 3, P) ndarray
+    """
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    return closed_form_fit(W, Rf, K)[0]
+
+
+def closed_form_fit(W, Rf, K):
+    """:func:`closed_form_shapes` on checked inputs, with the nullspace gap.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements, not zero.
+    Rf : (F, 2, 3) ndarray
+        Orthonormal camera rows.
+    K : int
+        Checked number of shape bases (``3K <= min(2F, P)``).
+
+    Returns
+    -------
+    X : (F, 3, P) ndarray
+    gap : float
+        The closed form's (K+1)-th smallest eigenvalue relative to its largest: above
+        :data:`NULLSPACE_GAP_MIN` when the rank-K fit is unique, at rounding level when it
+        is not (then X is one member chosen by rounding).
+    """
+    F, P = W.shape[0] // 2, W.shape[1]
+    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
+    B, ev = nullspace_coefficients(U, s, Rf, K)
+    B = B / np.linalg.norm(B, axis=0)
+    Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    C = c_step(B, Pi, Xi, np.zeros(K))
+    return (B @ C.T).reshape(F, 3, P), float(ev[K])
+
+
+def c_step(B, Pi, Xi, reg):
+    """argmin_C E(B, C): one (3r x 3r) system shared by all points.
+
+    For point p with unknowns c_p = [C_i(:, p)]_i (3r), the data term is
+    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``; normal matrix
+    ``sum_f (B_f'B_f) kron (R_f'R_f) + diag(reg kron 1_3)``, right-hand side
+    ``sum_f B_f' kron X_init_f``.
+    """
+    F, r = B.shape
+    P = Xi.shape[1] // 3
+    BB = (B[:, :, None] * B[:, None, :]).reshape(F, r * r)
+    N = (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3).reshape(3 * r, 3 * r)
+    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
+    rhs = (B.T @ Xi).reshape(3 * r, P)
+    try:
+        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
+                                   check_finite=False)
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        c = np.linalg.lstsq(N, rhs, rcond=None)[0]
+    return c.reshape(r, 3 * P).T                              # (3P, r)
