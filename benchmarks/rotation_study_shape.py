@@ -3,7 +3,7 @@ single best triplet (``bmm``), the paper's L1 average (``organic``), the average
 family combination (``family``, :mod:`nrsfm.research`) and the averaged rotations
 projected back onto one triplet of the rank-3K factorisation (``refit``); each with the
 rotation stage's own rotations (no shape selection). ``rowsp``: how far the rotations are
-from the cameras of one triplet (:func:`nrsfm.research.rotations.row_space_residual`, relative;
+from the cameras of one triplet (:func:`nrsfm.research.triplets.row_space_residual`, relative;
 0 = consistent with W's row space).
 
 Example::
@@ -52,7 +52,7 @@ def run(names, data, variants=tuple(VARIANTS), say=print):
     import data_tools
     import nrsfm
     from nrsfm.metrics import e3d, rotation_error
-    from nrsfm.research.rotations import row_space_residual
+    from nrsfm.research.triplets import row_space_residual
 
     warnings.simplefilter("ignore")
     say(f"{'sequence':9s} " + " ".join(f"{v + ' e_R':>13s} {v + ' e3d':>13s} {'rowsp':>8s} {'s':>5s}"

@@ -5,7 +5,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import data_tools
-from nrsfm.research import rotations as AB
+from nrsfm.research import triplets as AB
 from nrsfm.stages import corrective as C
 from nrsfm.stages.measurement import factorize
 

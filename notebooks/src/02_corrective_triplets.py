@@ -48,7 +48,7 @@ import rerun as rr
 
 import data_tools
 import nrsfm
-from nrsfm.research.rotations import corrective_triplets_from, solution_space
+from nrsfm.research.triplets import corrective_triplets_from, solution_space
 from nrsfm.stages.corrective import constraint_matrix, corrective_triplets, triplet_cost
 from nrsfm.stages.measurement import factorize
 from nrsfm.metrics import camera_alignment

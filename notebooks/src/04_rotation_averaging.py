@@ -18,7 +18,7 @@
 #   (Lee & Civera), rather than the chordal L2 mean.
 #
 # `nrsfm.stages.rotations.average_rotations` is Algorithm 1 vectorised over frames;
-# `nrsfm.research.rotations.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
+# `nrsfm.research.triplets.chordal_mean` the L2 baseline; `max_iter=0` returns the Eq. (6) start.
 
 # %%
 import os
@@ -37,7 +37,7 @@ import data_tools
 import nrsfm
 from nrsfm.views import build_recording, output_path, show_recording, shown_path
 from nrsfm.research import research_settings
-from nrsfm.research.rotations import chordal_mean
+from nrsfm.research.triplets import chordal_mean
 from nrsfm.geometry import average_rotations, project_to_so3, rotation_angle
 from nrsfm.stages.rotations import resolve_depth_signs
 
