@@ -7,6 +7,7 @@ from threadpoolctl import threadpool_limits
 import data_tools
 from nrsfm.research import triplets as AB
 from nrsfm.stages import corrective as C
+from nrsfm.stages import relaxation as RX
 from nrsfm.stages.measurement import factorize
 
 
@@ -27,20 +28,20 @@ def test_constraint_matrix_matches_definition():
     M = rng.standard_normal((2 * F, 3 * K))
     Q = rng.standard_normal((3 * K, 3 * K))
     Q = Q + Q.T
-    A = C.constraint_matrix(M)
-    got = A @ Q[C.vech_index(3 * K)]
+    A = RX.constraint_matrix(M)
+    got = A @ Q[RX.vech_index(3 * K)]
     m1, m2 = M[0::2], M[1::2]
     want = np.empty(2 * F)
     want[0::2] = np.einsum("fi,ij,fj->f", m1, Q, m1) - np.einsum("fi,ij,fj->f", m2, Q, m2)
     want[1::2] = np.einsum("fi,ij,fj->f", m1, Q, m2)
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(C.gram_from_vech(Q[C.vech_index(3 * K)], 3 * K), Q)
+    np.testing.assert_allclose(RX.gram_from_vech(Q[RX.vech_index(3 * K)], 3 * K), Q)
 
 
 @pytest.mark.parametrize("K", [1, 2, 3])
 def test_solution_space_dimension_noise_free(K):
     M, _ = _M(K)
-    A = C.constraint_matrix(M)
+    A = RX.constraint_matrix(M)
     basis, sv = AB.solution_space(A, K)
     d = 2 * K * K - K
     assert basis.shape == (3 * K * (3 * K + 1) // 2, d)
@@ -52,7 +53,7 @@ def test_solution_space_dimension_noise_free(K):
 
 def test_relaxed_gram_admm_matches_cvxpy():
     M, _ = _M(2, noise=0.01)
-    basis, _ = AB.solution_space(C.constraint_matrix(M), 2)
+    basis, _ = AB.solution_space(RX.constraint_matrix(M), 2)
     Qa = AB.relaxed_gram(basis, 2, solver="admm", tol=1e-8)
     Qc = AB.relaxed_gram(basis, 2, solver="cvxpy")
     nuc = lambda Q: np.abs(np.linalg.eigvalsh(Q)).sum()
@@ -103,8 +104,8 @@ def test_corrective_triplets_deterministic():
 
 def test_penalized_gram_admm_matches_cvxpy_and_is_psd():
     M, _ = _M(3, noise=0.01, seed=2)
-    Qa = C.penalized_gram(M, 3, solver="admm", tol=1e-9)
-    Qc = C.penalized_gram(M, 3, solver="cvxpy")
+    Qa = RX.penalized_gram(M, 3, solver="admm", tol=1e-9)
+    Qc = RX.penalized_gram(M, 3, solver="cvxpy")
     assert np.linalg.eigvalsh(Qa).min() > -1e-9
     F = M.shape[0] // 2
     assert np.trace(M.T @ M @ Qa) == pytest.approx(2 * F, rel=1e-6)

@@ -49,7 +49,8 @@ import rerun as rr
 import data_tools
 import nrsfm
 from nrsfm.research.triplets import corrective_triplets_from, solution_space
-from nrsfm.stages.corrective import constraint_matrix, corrective_triplets, triplet_cost
+from nrsfm.stages.corrective import corrective_triplets, triplet_cost
+from nrsfm.stages.relaxation import constraint_matrix
 from nrsfm.stages.measurement import factorize
 from nrsfm.metrics import camera_alignment
 from nrsfm.views import output_path, show_recording, shown_path

@@ -69,6 +69,25 @@ def _k_max(name, data):
     return min(2 * seq.n_frames, seq.n_points) // 3
 
 
+def _checked(only, sequences, quick, overrides):
+    """(experiments, sequences, settings) of :func:`build_plan`, checked."""
+    import data_tools
+
+    only = list(EXPERIMENTS) if not only else list(only)
+    bad = [e for e in only if e not in EXPERIMENTS]
+    if bad:
+        raise ValueError(f"unknown experiment(s) {bad}; expected some of {list(EXPERIMENTS)}")
+    seqs = list(sequences) if sequences else list(data_tools.MOCAP_NAMES)
+    if not seqs:
+        raise ValueError("no sequences given")
+    s = settings(quick)
+    bad = sorted(set(overrides or {}) - set(s))
+    if bad:
+        raise ValueError(f"unknown setting(s) {bad}; expected some of {sorted(s)}")
+    s.update(overrides or {})
+    return only, seqs, s
+
+
 def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overrides=None):
     """Tasks of the selected experiments, without duplicates, in a stable order.
 
@@ -99,20 +118,7 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
     ValueError
         Unknown experiment name, empty sequence list.
     """
-    import data_tools
-
-    only = list(EXPERIMENTS) if not only else list(only)
-    bad = [e for e in only if e not in EXPERIMENTS]
-    if bad:
-        raise ValueError(f"unknown experiment(s) {bad}; expected some of {list(EXPERIMENTS)}")
-    seqs = list(sequences) if sequences else list(data_tools.MOCAP_NAMES)
-    if not seqs:
-        raise ValueError("no sequences given")
-    s = settings(quick)
-    bad = sorted(set(overrides or {}) - set(s))
-    if bad:
-        raise ValueError(f"unknown setting(s) {bad}; expected some of {sorted(s)}")
-    s.update(overrides or {})
+    only, seqs, s = _checked(only, sequences, quick, overrides)
     data = None if data is None else str(data)
     one = s["noise_sequence"] if s["noise_sequence"] in seqs else seqs[0]
 

@@ -276,77 +276,87 @@ def _plots(out, noise, missing, n_info, n_rows, k_rows, auto_rows):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from data_tools import MOCAP_K
 
     files = []
-
-    def save(fig, name):
-        path = Path(out) / f"{name}.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=90)
-        plt.close(fig)
-        files.append(path.name)
-
-    if noise:
-        seq, sigmas, methods, stats = noise
-        fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
-        for ax, j, label in ((axes[0], 0, "e_R"), (axes[1], 1, "e3d")):
-            for m in methods:
-                mu = np.array([stats[(s, m)][j][0] or np.nan for s in sigmas], float)
-                sd = np.array([stats[(s, m)][j][1] or 0.0 for s in sigmas], float)
-                ax.plot(sigmas, mu, "o-", label=m)
-                ax.fill_between(sigmas, mu - sd, mu + sd, alpha=0.2)
-            ax.set_xlabel("noise sigma (x mean row std of W)")
-            ax.set_ylabel(label)
-            ax.set_title(f"{label} vs noise, {seq}")
-            ax.legend()
-        save(fig, "noise")
-    if missing and missing[0]:
-        seq, pts = missing
-        fig, ax = plt.subplots(figsize=(4.8, 3.4))
-        for m, p in pts.items():
-            p = sorted(p)
-            ax.plot([x[0] for x in p], [x[1] for x in p], "o-", label=m)
-            if p[0][2] is not None:
-                ax.axhline(p[0][2], ls=":", color=ax.lines[-1].get_color(), lw=1)
-        ax.set_xlabel("fraction of point observations missing")
-        ax.set_ylabel("e3d")
-        ax.set_title(f"missing data, {seq} (dotted: complete data)")
-        ax.legend()
-        save(fig, "missing_curve")
-    if n_rows:
-        seqs, Ns = n_info
-        fig, ax = plt.subplots(figsize=(4.8, 3.4))
-        for n in seqs:
-            ax.plot(Ns, [(_get(n_rows, sequence=n, N=N) or {}).get("e3d", np.nan)
-                         for N in Ns], "o-", label=n)
-        ax.set_yscale("log")
-        ax.set_xlabel("N (leading singular values not penalised)")
-        ax.set_ylabel("e3d")
-        ax.set_title("N ablation")
-        ax.legend(fontsize=7)
-        save(fig, "n_ablation")
-    if k_rows:
-        seqs = list(dict.fromkeys(r["sequence"] for r in k_rows))
-        fig, ax = plt.subplots(figsize=(5.5, 3.6))
-        for n in seqs:
-            sel = sorted((r for r in k_rows if r["sequence"] == n), key=lambda r: r["K"])
-            line, = ax.plot([r["K"] for r in sel], [r.get("e3d", np.nan) for r in sel],
-                            ".-", label=n)
-            Kp = MOCAP_K.get(n)
-            rp = _get(sel, K=Kp)
-            if rp:
-                ax.plot([Kp], [rp["e3d"]], "o", mfc="none", color=line.get_color(), ms=9)
-            ra = _get(auto_rows or [], sequence=n)
-            if ra:
-                ax.plot([ra["K_auto"]], [ra["e3d"]], "x", color=line.get_color(), ms=9)
-        ax.set_yscale("log")
-        ax.set_xlabel("K")
-        ax.set_ylabel("e3d")
-        ax.set_title("K sweep (o: paper's K, x: automatic K)")
-        ax.legend(fontsize=7, ncol=2)
-        save(fig, "k_sweep")
+    figures = (("noise", noise and _noise_figure(plt, *noise)),
+               ("missing_curve", missing and missing[0] and _missing_figure(plt, *missing)),
+               ("n_ablation", n_rows and _n_figure(plt, n_info, n_rows)),
+               ("k_sweep", k_rows and _k_figure(plt, k_rows, auto_rows)))
+    for name, fig in figures:
+        if fig:
+            path = Path(out) / f"{name}.png"
+            fig.tight_layout()
+            fig.savefig(path, dpi=90)
+            plt.close(fig)
+            files.append(path.name)
     return files
+
+
+def _noise_figure(plt, seq, sigmas, methods, stats):
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    for ax, j, label in ((axes[0], 0, "e_R"), (axes[1], 1, "e3d")):
+        for m in methods:
+            mu = np.array([stats[(s, m)][j][0] or np.nan for s in sigmas], float)
+            sd = np.array([stats[(s, m)][j][1] or 0.0 for s in sigmas], float)
+            ax.plot(sigmas, mu, "o-", label=m)
+            ax.fill_between(sigmas, mu - sd, mu + sd, alpha=0.2)
+        ax.set_xlabel("noise sigma (x mean row std of W)")
+        ax.set_ylabel(label)
+        ax.set_title(f"{label} vs noise, {seq}")
+        ax.legend()
+    return fig
+
+
+def _missing_figure(plt, seq, pts):
+    fig, ax = plt.subplots(figsize=(4.8, 3.4))
+    for m, p in pts.items():
+        p = sorted(p)
+        ax.plot([x[0] for x in p], [x[1] for x in p], "o-", label=m)
+        if p[0][2] is not None:
+            ax.axhline(p[0][2], ls=":", color=ax.lines[-1].get_color(), lw=1)
+    ax.set_xlabel("fraction of point observations missing")
+    ax.set_ylabel("e3d")
+    ax.set_title(f"missing data, {seq} (dotted: complete data)")
+    ax.legend()
+    return fig
+
+
+def _n_figure(plt, n_info, n_rows):
+    seqs, Ns = n_info
+    fig, ax = plt.subplots(figsize=(4.8, 3.4))
+    for n in seqs:
+        ax.plot(Ns, [(_get(n_rows, sequence=n, N=N) or {}).get("e3d", np.nan)
+                     for N in Ns], "o-", label=n)
+    ax.set_yscale("log")
+    ax.set_xlabel("N (leading singular values not penalised)")
+    ax.set_ylabel("e3d")
+    ax.set_title("N ablation")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def _k_figure(plt, k_rows, auto_rows):
+    from data_tools import MOCAP_K
+
+    seqs = list(dict.fromkeys(r["sequence"] for r in k_rows))
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for n in seqs:
+        sel = sorted((r for r in k_rows if r["sequence"] == n), key=lambda r: r["K"])
+        line, = ax.plot([r["K"] for r in sel], [r.get("e3d", np.nan) for r in sel],
+                        ".-", label=n)
+        Kp = MOCAP_K.get(n)
+        rp = _get(sel, K=Kp)
+        if rp:
+            ax.plot([Kp], [rp["e3d"]], "o", mfc="none", color=line.get_color(), ms=9)
+        ra = _get(auto_rows or [], sequence=n)
+        if ra:
+            ax.plot([ra["K_auto"]], [ra["e3d"]], "x", color=line.get_color(), ms=9)
+    ax.set_yscale("log")
+    ax.set_xlabel("K")
+    ax.set_ylabel("e3d")
+    ax.set_title("K sweep (o: paper's K, x: automatic K)")
+    ax.legend(fontsize=7, ncol=2)
+    return fig
 
 
 # ------------------------------------------------------------------------------ driver

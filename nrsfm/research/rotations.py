@@ -204,7 +204,7 @@ class RotationAblationSettings(RotationSettings):
     starts : {"search", "relaxed", "dai", "columns", "multistart"}
         Starts of the triplet refinement (:func:`nrsfm.research.triplets.corrective_triplets_from`).
     lam : float
-        Penalty of :func:`nrsfm.stages.corrective.penalized_gram` (non-search starts).
+        Penalty of :func:`nrsfm.stages.relaxation.penalized_gram` (non-search starts).
     gram : {"penalized", "nuclear"}
         Relaxation whose column blocks ``starts="columns"`` refines.
     n_random, n_full, screen_frames, screen_iter : int

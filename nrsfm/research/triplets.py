@@ -13,9 +13,9 @@ import time
 import numpy as np
 
 from ..geometry import project_to_so3
-from ..stages.corrective import (CorrectiveResult, _normalise_triplet, constraint_matrix,
-                                 corrective_triplets, gram_from_vech, penalized_gram,
-                                 refine_triplet, triplet_cost, triplets_from_gram)
+from ..stages.corrective import CorrectiveResult, corrective_triplets, refine_triplet
+from ..stages.relaxation import (constraint_matrix, gram_from_vech, penalized_gram,
+                                 triplets_from_gram)
 
 __all__ = ["chordal_mean", "corrective_triplets_from", "relaxed_gram", "row_space_residual",
            "solution_space", "triplet_from_rotations"]
@@ -281,11 +281,7 @@ def corrective_triplets_from(M_hat, K, starts="search", seed=0, n_random=32, n_f
     t0 = time.perf_counter()
     Gs, costs, infos, G_init = [], [], [], []
     for name, G0 in cands:
-        if refine:
-            G, inf = refine_triplet(G0, M, method=refine)
-        else:
-            G = _normalise_triplet(G0, M)
-            inf = dict(cost=triplet_cost(G, M))
+        G, inf = refine_triplet(G0, M, method=refine)
         inf["start"] = name
         Gs.append(G)
         G_init.append(G0)

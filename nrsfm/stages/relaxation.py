@@ -1,0 +1,227 @@
+"""The convex relaxation that gives the triplet search its first starts (Dai et al.'s
+constraints on Q = G G', penalised instead of imposed), and the triplets a Gram matrix
+gives. Used by :mod:`nrsfm.stages.corrective`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+__all__ = ["constraint_matrix", "gram_from_vech", "penalized_gram", "triplets_from_gram",
+           "vech_index"]
+
+
+# ----------------------------------------------------------------------------- constraints
+def vech_index(n):
+    """Row and column indices (i <= j) of the upper triangle of an n x n matrix."""
+    return np.triu_indices(n)
+
+
+def gram_from_vech(q, n):
+    """Symmetric n x n matrix from its upper triangle (vech order of :func:`vech_index`).
+
+    ``q`` may be (n(n+1)/2,) or (n(n+1)/2, m): the result is then (m, n, n).
+    """
+    q = np.asarray(q, float)
+    iu = vech_index(n)
+    if q.ndim == 1:
+        Q = np.zeros((n, n))
+        Q[iu] = q
+        return Q + np.triu(Q, 1).T
+    Q = np.zeros((q.shape[1], n, n))
+    Q[:, iu[0], iu[1]] = q.T
+    return Q + np.transpose(np.triu(Q, 1), (0, 2, 1))
+
+
+def constraint_matrix(M_hat):
+    """Dai's 2F linear equations on vech(Q) (vectorised over frames).
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+
+    Returns
+    -------
+    A : (2F, n(n+1)/2) ndarray, n = 3K
+        Row 2f: ``m_1 Q m_1' - m_2 Q m_2'``; row 2f+1: ``m_1 Q m_2'`` as linear functions of
+        the upper triangle of Q (off-diagonal entries counted twice where Q is symmetric).
+    """
+    M = np.asarray(M_hat, float)
+    F, n = M.shape[0] // 2, M.shape[1]
+    m1, m2 = M[0::2], M[1::2]
+    i, j = vech_index(n)
+    off = (i != j).astype(float)
+    a = m1[:, i] * m1[:, j] - m2[:, i] * m2[:, j]
+    a = a * (1.0 + off)
+    b = m1[:, i] * m2[:, j] + off * m1[:, j] * m2[:, i]
+    A = np.empty((2 * F, a.shape[1]))
+    A[0::2], A[1::2] = a, b
+    return A
+
+
+def _constraint_eig(At, cache):
+    """Eigendecomposition of ``At' At`` (independent of the penalty: cached across them)."""
+    if cache is not None and "eig" in cache:
+        return cache["eig"]
+    e, V = np.linalg.eigh(At.T @ At)
+    if cache is not None:
+        cache["eig"] = (e, V)
+    return e, V
+
+
+def _warm_start(cache, Z, U, rho):
+    """The previous penalty's ADMM state when cached (the problem is convex: the same
+    optimum, fewer iterations; pickup 195 -> 60), else the given start."""
+    if cache is None or "warm" not in cache:
+        return Z, U, rho
+    Zw, Uw, rw = cache["warm"]
+    return np.array(Zw, copy=True), np.array(Uw, copy=True), float(rw)
+
+
+def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
+                   return_info=False, _cache=None):
+    """A convex relaxation that does land near the best triplet on the benchmark.
+
+    ``minimise  a trace(Q) + (lam / F) ||A vech(Q)||^2
+      s.t.  Q PSD,  <M'M, Q> = 2F``
+
+    with ``a = trace(M'M) / (2F 3K)`` (so that both terms are dimensionless). The
+    constraint residual of Dai's equations is penalised instead of imposed (the exact
+    intersection of the approximate null space with the PSD cone is empty on real data,
+    see :func:`nrsfm.research.rotations.relaxed_gram`), the normalisation fixes the mean squared camera scale
+    ``mean_f |c_f|^2`` to 1 instead of an arbitrary sum of basis coefficients, and the
+    trace (nuclear norm on the PSD cone) pushes the solution to low rank. Which ``lam``
+    reaches the best minimum with and without noise: ``docs/rotation_stage.md``.
+
+    Parameters
+    ----------
+    M_hat : (2F, 3K) ndarray
+    K : int
+    lam : float
+    solver : {"admm", "cvxpy"}
+        ``admm``: the ADMM below (one eigendecomposition of the 3K(3K+1)/2 square Gram
+        matrix of the constraints up front, then a 3K x 3K eigendecomposition per
+        iteration). ``cvxpy``: cvxpy + SCS for cross-checking.
+
+    Returns
+    -------
+    Q : (3K, 3K) ndarray, symmetric PSD
+    info : dict (if ``return_info``)
+    """
+    M = np.asarray(M_hat, float)
+    F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
+    A = constraint_matrix(M)
+    C = M.T @ M
+    a = np.trace(C) / (2.0 * F * n)
+    iu = vech_index(n)
+    dw = np.where(iu[0] == iu[1], 1.0, np.sqrt(2.0))      # vec_w(Q) = dw * vech(Q)
+    At = A / dw                                            # A vech(Q) = At vec_w(Q)
+    t = (iu[0] == iu[1]).astype(float)                     # trace(Q) = t . vec_w(Q)
+    c = C[iu] * dw                                         # <C, Q> = c . vec_w(Q)
+    t0 = time.perf_counter()
+    if solver == "cvxpy":
+        Q, info = _penalized_cvxpy(A, C, a, lam, F, n, iu)
+    elif solver == "admm":
+        Q, info = _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, _cache)
+    else:
+        raise ValueError(f"unknown solver {solver!r}")
+    info["seconds"] = time.perf_counter() - t0
+    info["constraint_residual"] = float(np.linalg.norm(A @ Q[iu]) / np.sqrt(F))
+    return (Q, info) if return_info else Q
+
+
+def _penalized_cvxpy(A, C, a, lam, F, n, iu):
+    """The relaxation by cvxpy + SCS (the cross-check of the ADMM)."""
+    import cvxpy as cp
+
+    Qv = cp.Variable((n, n), PSD=True)
+    q = cp.hstack([Qv[i, j] for i, j in zip(*iu)])
+    prob = cp.Problem(cp.Minimize(a * cp.trace(Qv) + lam / F * cp.sum_squares(A @ q)),
+                      [cp.trace(C @ Qv) == 2 * F])
+    prob.solve(solver=cp.SCS, eps=1e-7, max_iters=50000)
+    Q = 0.5 * (Qv.value + Qv.value.T)
+    info = dict(solver="cvxpy-scs", status=prob.status)
+    return Q, info
+
+
+def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
+    """The relaxation by ADMM: one eigendecomposition of the constraints' Gram matrix up
+    front (cached), a 3K x 3K eigendecomposition per iteration, residual balancing."""
+    e, V = _constraint_eig(At, cache)
+    e = np.clip(e, 0, None) * (2.0 * lam / F)
+    Vt_c = V.T @ c
+
+    def solve(rhs_v, rho):                             # (2 lam/F At'At + rho I)^-1
+        return V @ (rhs_v / (e + rho))
+
+    rho = 1.0
+    Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
+    U = np.zeros((n, n))
+    Z, U, rho = _warm_start(cache, Z, U, rho)
+    status, it = "max_iter", 0
+    Hc = None
+    for it in range(1, max_iter + 1):
+        if Hc is None:
+            Hc = solve(Vt_c, rho)                      # H^-1 c
+            cHc = c @ Hc
+        rhs = rho * ((Z - U)[iu] * dw) - a * t
+        y = solve(V.T @ rhs, rho)
+        mu = (c @ y - 2.0 * F) / cHc
+        v = y - mu * Hc
+        Qm = np.zeros((n, n))
+        Qm[iu] = v / dw
+        Qm = Qm + np.triu(Qm, 1).T
+        w, E = np.linalg.eigh(Qm + U)
+        Z_old = Z
+        Z = (E * np.clip(w, 0, None)) @ E.T
+        r = Qm - Z
+        U += r
+        rn, sn = np.linalg.norm(r), np.linalg.norm(Z - Z_old)
+        scale = max(np.linalg.norm(Z), 1e-300)
+        if rn < tol * scale and sn < tol * scale:
+            status = "converged"
+            break
+        if it % 10 == 0:                               # residual balancing
+            if rn > 10 * sn:
+                rho *= 2.0
+                U /= 2.0
+                Hc = None
+            elif sn > 10 * rn:
+                rho /= 2.0
+                U *= 2.0
+                Hc = None
+    Q = 0.5 * (Z + Z.T)
+    if cache is not None:
+        cache["warm"] = (Z, U, rho)
+    info = dict(solver="admm", status=status, iterations=it, rho=rho,
+                primal_residual=float(rn))
+    return Q, info
+
+
+def triplets_from_gram(Q, mode="eig"):
+    """Triplets from a (relaxed) Gram matrix.
+
+    Parameters
+    ----------
+    Q : (3K, 3K) symmetric ndarray
+    mode : {"eig", "columns"}
+        ``eig``: one triplet ``V_3 sqrt(L_3)`` from the top-3 eigenpairs (Dai).
+        ``columns``: the K column blocks ``Q[:, 3k:3k+3]`` (for Q = G G' of rank 3 each
+        is G times a 3 x 3 matrix: a valid triplet up to an affine map that refinement
+        removes) -- the paper's "K column triplets" read literally.
+
+    Returns
+    -------
+    G : (m, 3K, 3) ndarray (m = 1 for ``eig``, K for ``columns``)
+    """
+    Q = 0.5 * (np.asarray(Q, float) + np.asarray(Q, float).T)
+    n = Q.shape[0]
+    if mode == "eig":
+        w, V = np.linalg.eigh(Q)
+        w, V = w[::-1][:3], V[:, ::-1][:, :3]
+        return (V * np.sqrt(np.clip(w, 0, None)))[None]
+    if mode == "columns":
+        return np.stack([Q[:, 3 * k:3 * k + 3] for k in range(n // 3)])
+    raise ValueError(f"unknown mode {mode!r}")
