@@ -71,12 +71,14 @@ class Reconstruction:
     W_completed : (2F, P) ndarray or None
         Where the input had missing observations: the completed W (input units, before
         centring) that the pipeline ran on.
-    completion : CompletionResult or FastCompletion or None
-        The completion's result (:func:`nrsfm.stages.completion.complete`).
+    completion : nrsfm.stages.completion.Completion or None
+        Where the input had missing observations: the completion stage's result
+        (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
     fill_gain : (P,) ndarray or None
         Where the input had missing observations: how much each track's filled entries
         amplify measurement noise under the rank-3K motion ``M_hat``
-        (:func:`nrsfm.stages.completion_fast.fill_gain`); see :attr:`undetermined`.
+        (``completion.fill_gain``, computed by the completion stage); see
+        :attr:`undetermined`.
     """
 
     rotations: np.ndarray
@@ -101,11 +103,11 @@ class Reconstruction:
     @property
     def undetermined(self):
         """(P,) bool: tracks seen in too few frames for the data to pin down their 3D
-        (fill gain above :data:`nrsfm.stages.completion_fast.MAX_GAIN`); all False for
+        (fill gain above :data:`nrsfm.stages.completion.MAX_GAIN`); all False for
         complete input. Their shapes are filled, but are an extrapolation."""
         if self.fill_gain is None:
             return np.zeros(self.n_points, bool)
-        from .stages.completion_fast import MAX_GAIN
+        from .stages.completion import MAX_GAIN
 
         return self.fill_gain > MAX_GAIN
 
@@ -185,7 +187,7 @@ class Reconstruction:
         if self.observed is not None:
             c = self.completion
             lines.append(f"  missing data: {100 * (1 - self.observed.mean()):.1f} % of the "
-                         f"observations filled ({type(c).__name__}, lags {c.lags}, "
+                         f"observations filled ({c.method}, lags {c.lags}, "
                          f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
                          f"tracks undetermined (seen in too few frames: their 3D is an "
                          f"extrapolation)")
@@ -292,10 +294,13 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
         What to do with missing observations: NaN in W or tracks (a point counts as missing
         in a frame when either coordinate is NaN), or the mask of a
         ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
-        (:func:`nrsfm.stages.completion.complete`: a rank-3K factorisation of the observed
-        entries; soft-impute with ``settings.measurement.completion = "soft_impute"``)
-        and run the pipeline on it; the result keeps ``observed``, ``W_completed`` and
-        the tracks the data leave ``undetermined``. ``error``: refuse.
+        (:func:`nrsfm.stages.completion.complete`) and run the pipeline on it; the result
+        keeps ``completion``, ``observed``, ``W_completed`` and the tracks the data leave
+        ``undetermined``. The completion is ``settings.measurement.completion``, by
+        default ``"auto"``: soft-impute of the time-lagged W where the lags rule asks for
+        lags (few points per frame for the rank 3K: MoCap-sized W), the rank-3K
+        factorisation of the observed entries elsewhere (dense tracks);
+        ``"factorisation"`` or ``"soft_impute"`` force one. ``error``: refuse.
     settings : nrsfm.settings.Settings, optional
         Every setting, typed (replaces ``method``, ``shape_solver``, ``missing`` and the
         option dicts, which are then not allowed).
@@ -369,8 +374,7 @@ def reconstruct(W, K, method="organic", rotations=None, *, seed=0, rotation_opti
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
                           completion=completion,
-                          fill_gain=None if completion is None else
-                          _fill_gain(fact.M_hat, completion.observed))
+                          fill_gain=None if completion is None else completion.fill_gain)
 
 
 def _check_inputs(W, K, rotations, missing):
@@ -390,7 +394,8 @@ def _check_inputs(W, K, rotations, missing):
 
 
 def _complete(W, K, settings, timings):
-    """(completion result or None, W with its missing entries filled)."""
+    """(Completion or None, W with its missing entries filled): the completion stage,
+    and a RuntimeWarning when it stopped at its iteration cap."""
     if not np.isnan(W).any():
         return None, W
     from .stages.completion import complete
@@ -402,10 +407,3 @@ def _complete(W, K, settings, timings):
                       f"({completion.n_iter}) before converging: the filled "
                       f"entries may be inaccurate", RuntimeWarning, stacklevel=3)
     return completion, completion.W
-
-
-def _fill_gain(M_hat, observed):
-    """(P,) fill gain of every track under the rank-3K motion of the completed W."""
-    from .stages.completion_fast import fill_gain
-
-    return fill_gain(M_hat, observed)

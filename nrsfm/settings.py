@@ -59,43 +59,8 @@ def _fraction(name, value):
 
 
 # ----------------------------------------------------------------------------- measurement
-@dataclass(frozen=True)
-class MeasurementSettings:
-    """Measurement stage (centring, scale, rank-3K SVD; missing data).
-
-    Attributes
-    ----------
-    missing : {"complete", "error"}
-        Missing observations (NaN or masked): fill W by low-rank completion
-        (:mod:`nrsfm.stages.completion`), or refuse.
-    completion : {"auto", "factorisation", "soft_impute"}
-        How W is completed: ``factorisation``, a rank-3K factorisation of the observed
-        entries (:func:`nrsfm.stages.completion_fast.complete_low_rank`; it scales to dense
-        tracks), or ``soft_impute``, the nuclear-norm completion of the time-lagged matrix
-        with a full SVD per iteration (:func:`nrsfm.stages.completion.complete_measurements`).
-        ``auto`` (default): ``soft_impute`` where the lags rule asks for time lags (few
-        points per frame for the rank: a small W, where the full SVD is cheap and the lagged
-        factorisation measured 2-10x slower and stops at its iteration cap), else
-        ``factorisation``. Measurements: ``docs/missing_data_scale.md``.
-    lags : "auto" or tuple of int
-        Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
-        of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
-    """
-
-    missing: str = "complete"
-    completion: str = "auto"
-    lags: object = "auto"
-
-    def __post_init__(self):
-        _one_of("missing", self.missing, ("complete", "error"))
-        _one_of("completion", self.completion, ("auto", "factorisation", "soft_impute"))
-        if self.lags != "auto":
-            lags = tuple(self.lags) if isinstance(self.lags, (tuple, list)) else None
-            if (lags is None or not all(isinstance(d, int) for d in lags) or 0 not in lags
-                    or len(set(lags)) != len(lags)):
-                raise ValueError(f"lags must be 'auto' or distinct integers including 0; "
-                                 f"got {self.lags!r}")
-            object.__setattr__(self, "lags", lags)
+# the completion stage's own settings, in its package (one table of allowed values there)
+from .stages.completion.settings import MeasurementSettings  # noqa: E402
 
 
 # ----------------------------------------------------------------------------- rotations
