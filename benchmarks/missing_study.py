@@ -12,8 +12,9 @@ tracks (and the soft-impute completion). Prints two tables.
 2. MoCap (issue 16, acceptance 2; needs NRSFM_DATA): 30 % missing in the tracking pattern
    and uniformly at random (``data_tools.drop_tracks``, seed 0), organic at the paper's K:
    e3d of complete data and of ``nrsfm.reconstruct`` with each completion
-   (``MeasurementSettings.completion``: the factorisation, default, and soft-impute), lags
-   by the rule of ``nrsfm.stages.completion.choose_lags``.
+   (``MeasurementSettings.completion``: the factorisation and soft-impute; the default
+   ``auto`` takes soft-impute on MoCap), lags by the rule of
+   ``nrsfm.stages.completion.choose_lags``.
 3. Synthetic videos (``data_tools.synthetic_video``, sheet and face), sparse and dense
    tracks with new tracks every ``--detect-every`` frames: ``reconstruct_tracks`` (the
    path of ``nrsfm video``) on the complete tracks alone against every track seen in 2+
@@ -40,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import nrsfm  # noqa: E402
 from data_tools.synthetic import camera_rotations  # noqa: E402
 from nrsfm.metrics import e3d  # noqa: E402
-from nrsfm.stages.completion_fast import MAX_GAIN  # noqa: E402
+from nrsfm.stages.completion import MAX_GAIN  # noqa: E402
 
 
 def dense_sequence(P, F, K, noise, lost, late, seed):

@@ -9,10 +9,8 @@ its typed settings (:mod:`nrsfm.settings`):
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
-import warnings
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 
@@ -20,11 +18,11 @@ import numpy as np
 
 from .diagnostics import diagnose
 from .settings import METHODS, Settings, method_settings
+from .stages.completion import complete
 from .stages.measurement import Factorization, measure
 from .stages.selection import shape_for_rotations
 from .stages.shape import ShapeResult
-from .validation import (blas_threads, check_K, check_measurements, check_rotations,
-                         power_of_two_scale)
+from .validation import blas_threads, check_problem, power_of_two_scale
 
 __all__ = ["METHODS", "Reconstruction", "reconstruct"]
 
@@ -70,12 +68,14 @@ class Reconstruction:
     W_completed : (2F, P) ndarray or None
         Where the input had missing observations: the completed W (input units, before
         centring) that the pipeline ran on.
-    completion : CompletionResult or FastCompletion or None
-        The completion's result (:func:`nrsfm.stages.completion.complete`).
+    completion : nrsfm.stages.completion.Completion or None
+        Where the input had missing observations: the completion stage's result
+        (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
     fill_gain : (P,) ndarray or None
         Where the input had missing observations: how much each track's filled entries
         amplify measurement noise under the rank-3K motion ``M_hat``
-        (:func:`nrsfm.stages.completion_fast.fill_gain`); see :attr:`undetermined`.
+        (``completion.fill_gain``, computed by the completion stage); see
+        :attr:`undetermined`.
     """
 
     rotations: np.ndarray
@@ -100,11 +100,11 @@ class Reconstruction:
     @property
     def undetermined(self):
         """(P,) bool: tracks seen in too few frames for the data to pin down their 3D
-        (fill gain above :data:`nrsfm.stages.completion_fast.MAX_GAIN`); all False for
+        (fill gain above :data:`nrsfm.stages.completion.MAX_GAIN`); all False for
         complete input. Their shapes are filled, but are an extrapolation."""
         if self.fill_gain is None:
             return np.zeros(self.n_points, bool)
-        from .stages.completion_fast import MAX_GAIN
+        from .stages.completion import MAX_GAIN
 
         return self.fill_gain > MAX_GAIN
 
@@ -184,7 +184,7 @@ class Reconstruction:
         if self.observed is not None:
             c = self.completion
             lines.append(f"  missing data: {100 * (1 - self.observed.mean()):.1f} % of the "
-                         f"observations filled ({type(c).__name__}, lags {c.lags}, "
+                         f"observations filled ({c.method}, lags {c.lags}, "
                          f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
                          f"tracks undetermined (seen in too few frames: their 3D is an "
                          f"extrapolation)")
@@ -259,10 +259,13 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
         What to do with missing observations: NaN in W or tracks (a point counts as missing
         in a frame when either coordinate is NaN), or the mask of a
         ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
-        (:func:`nrsfm.stages.completion.complete`: a rank-3K factorisation of the observed
-        entries; soft-impute with ``settings.measurement.completion = "soft_impute"``)
-        and run the pipeline on it; the result keeps ``observed``, ``W_completed`` and
-        the tracks the data leave ``undetermined``. ``error``: refuse.
+        (:func:`nrsfm.stages.completion.complete`) and run the pipeline on it; the result
+        keeps ``completion``, ``observed``, ``W_completed`` and the tracks the data leave
+        ``undetermined``. The completion is ``settings.measurement.completion``, by
+        default ``"auto"``: soft-impute of the time-lagged W where the lags rule asks for
+        lags (few points per frame for the rank 3K: MoCap-sized W), the rank-3K
+        factorisation of the observed entries elsewhere (dense tracks);
+        ``"factorisation"`` or ``"soft_impute"`` force one. ``error``: refuse.
     settings : nrsfm.settings.Settings, optional
         Every setting, typed. It replaces ``method``, ``shape_solver``, ``missing``,
         ``rotation_options`` and ``shape_options``: giving any of them beside it is a
@@ -289,11 +292,15 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                          missing=missing, rotation_options=rotation_options,
                          shape_options=shape_options)
     # every input check before any computation (the completion can take a while)
-    W, K, rotations = _check_inputs(W, K, rotations, settings.measurement.missing)
+    W, K, rotations = check_problem(W, K, rotations, settings.measurement.missing)
     say = _progress_printer(progress)
     timings = {}
     with blas_threads(blas_thread_limit) if blas_thread_limit else nullcontext():
-        completion, W = _complete(W, K, settings.measurement, timings)
+        completion = None
+        if np.isnan(W).any():
+            with _timed(timings, "completion"):
+                completion = complete(W, K, settings.measurement)
+            W = completion.W
         with _timed(timings, "factorize"):
             meas = measure(W, K)
         fact = meas.factorization
@@ -309,7 +316,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                                                          settings.shape, say)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
     diagnostics.warn(stacklevel=2)
-    params = _params(settings, K, seed, meas.scale, rotations_given=rotation_stage is None)
+    params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
         raise ValueError(f"the shapes overflow in the input's units (max|W| = "
@@ -322,8 +329,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
                           completion=completion,
-                          fill_gain=None if completion is None else
-                          _fill_gain(fact.M_hat, completion.observed))
+                          fill_gain=None if completion is None else completion.fill_gain)
 
 
 def _settings(settings, **keywords):
@@ -341,56 +347,3 @@ def _settings(settings, **keywords):
                          f"into the settings (e.g. dataclasses.replace(settings.shape, "
                          f"solver=...))")
     return settings
-
-
-def _params(settings, K, seed, scale, rotations_given):
-    """What ran, read from the settings that ran (``params["settings"]`` holds them)."""
-    shape = settings.shape
-    return dict(method=settings.method, K=K, seed=seed,
-                rotation_strategy=None if rotations_given else settings.rotation.strategy,
-                rotation_options=None if rotations_given else
-                dataclasses.asdict(settings.rotation),
-                shape_prior=shape.prior, shape_solver=shape.solver.name,
-                shape_options=dataclasses.asdict(shape.solver),
-                select_rotations=shape.select_rotations and not rotations_given,
-                scale=scale, rotations_given=rotations_given,
-                missing=settings.measurement.missing,
-                completion=settings.measurement.completion, settings=settings)
-
-
-def _check_inputs(W, K, rotations, missing):
-    """(W as (2F, P) with NaN where missing, K, rotations as (F, 3, 3) or None)."""
-    W = check_measurements(W, allow_missing=True)
-    F, P = W.shape[0] // 2, W.shape[1]
-    missing_entries = np.isnan(W)
-    if missing_entries.any() and missing == "error":
-        n_miss = int(missing_entries.reshape(F, 2, P).any(axis=1).sum())
-        raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
-                         f"masked) and missing='error'; use missing='complete' to "
-                         f"fill them by low-rank completion")
-    K = check_K(K, F, P)
-    if rotations is not None:
-        rotations = check_rotations(rotations, "rotations", n_frames=F)
-    return W, K, rotations
-
-
-def _complete(W, K, settings, timings):
-    """(completion result or None, W with its missing entries filled)."""
-    if not np.isnan(W).any():
-        return None, W
-    from .stages.completion import complete
-
-    with _timed(timings, "completion"):
-        completion = complete(W, K, settings)
-    if not completion.converged:
-        warnings.warn(f"the completion of W stopped at its iteration cap "
-                      f"({completion.n_iter}) before converging: the filled "
-                      f"entries may be inaccurate", RuntimeWarning, stacklevel=3)
-    return completion, completion.W
-
-
-def _fill_gain(M_hat, observed):
-    """(P,) fill gain of every track under the rank-3K motion of the completed W."""
-    from .stages.completion_fast import fill_gain
-
-    return fill_gain(M_hat, observed)

@@ -25,6 +25,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
+from .stages.completion import MeasurementSettings
 from .stages.rotations import RotationSettings
 from .stages.shape import SOLVERS, ShapeSettings, solver_settings
 from .stages.shape.admm import AdmmSettings
@@ -37,46 +38,6 @@ __all__ = ["AdmmSettings", "BilinearSettings", "ClosedFormSettings", "Constraine
            "METHODS", "MeasurementSettings", "Method", "PseudoInverseSettings",
            "RotationSettings", "Settings", "ShapeSettings", "method_settings",
            "shape_solvers"]
-
-
-# ----------------------------------------------------------------------------- measurement
-@dataclass(frozen=True)
-class MeasurementSettings:
-    """Measurement stage (centring, scale, rank-3K SVD; missing data).
-
-    Attributes
-    ----------
-    missing : {"complete", "error"}
-        Missing observations (NaN or masked): fill W by low-rank completion
-        (:mod:`nrsfm.stages.completion`), or refuse.
-    completion : {"auto", "factorisation", "soft_impute"}
-        How W is completed: ``factorisation``, a rank-3K factorisation of the observed
-        entries (:func:`nrsfm.stages.completion_fast.complete_low_rank`; it scales to dense
-        tracks), or ``soft_impute``, the nuclear-norm completion of the time-lagged matrix
-        with a full SVD per iteration (:func:`nrsfm.stages.completion.complete_measurements`).
-        ``auto`` (default): ``soft_impute`` where the lags rule asks for time lags (few
-        points per frame for the rank: a small W, where the full SVD is cheap and the lagged
-        factorisation measured 2-10x slower and stops at its iteration cap), else
-        ``factorisation``. Measurements: ``docs/missing_data_scale.md``.
-    lags : "auto" or tuple of int
-        Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
-        of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
-    """
-
-    missing: str = "complete"
-    completion: str = "auto"
-    lags: object = "auto"
-
-    def __post_init__(self):
-        check_choice("missing", self.missing, ("complete", "error"))
-        check_choice("completion", self.completion, ("auto", "factorisation", "soft_impute"))
-        if self.lags != "auto":
-            lags = tuple(self.lags) if isinstance(self.lags, (tuple, list)) else None
-            if (lags is None or not all(isinstance(d, int) for d in lags) or 0 not in lags
-                    or len(set(lags)) != len(lags)):
-                raise ValueError(f"lags must be 'auto' or distinct integers including 0; "
-                                 f"got {self.lags!r}")
-            object.__setattr__(self, "lags", lags)
 
 
 # ----------------------------------------------------------------------------- methods
@@ -183,6 +144,21 @@ class Settings:
     def preset(cls, method="organic"):
         """The settings of a method (:data:`METHODS`)."""
         return cls(method=method)
+
+    def params(self, K, seed, scale, rotations_given):
+        """What a run with these settings ran, as plain values (``Reconstruction.params``;
+        ``params["settings"]`` holds the settings themselves)."""
+        shape = self.shape
+        return dict(method=self.method, K=K, seed=seed,
+                    rotation_strategy=None if rotations_given else self.rotation.strategy,
+                    rotation_options=None if rotations_given else
+                    dataclasses.asdict(self.rotation),
+                    shape_prior=shape.prior, shape_solver=shape.solver.name,
+                    shape_options=dataclasses.asdict(shape.solver),
+                    select_rotations=shape.select_rotations and not rotations_given,
+                    scale=scale, rotations_given=rotations_given,
+                    missing=self.measurement.missing,
+                    completion=self.measurement.completion, settings=self)
 
 
 def shape_solvers():

@@ -201,3 +201,33 @@ def check_fraction(name, value):
     if not (check_positive(name, value) <= 1.0):
         raise ValueError(f"{name} must be in (0, 1]; got {value!r}")
     return value
+
+
+def check_problem(W, K, rotations=None, missing="complete"):
+    """Every input check of a reconstruction, before any computation.
+
+    Returns
+    -------
+    W : (2F, P) ndarray
+        NaN where an observation is missing.
+    K : int
+    rotations : (F, 3, 3) ndarray or None
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_measurements`, :func:`check_K` and :func:`check_rotations`, and
+        missing observations with ``missing="error"``.
+    """
+    W = check_measurements(W, allow_missing=True)
+    F, P = W.shape[0] // 2, W.shape[1]
+    missing_entries = np.isnan(W)
+    if missing_entries.any() and missing == "error":
+        n_miss = int(missing_entries.reshape(F, 2, P).any(axis=1).sum())
+        raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
+                         f"masked) and missing='error'; use missing='complete' to "
+                         f"fill them by low-rank completion")
+    K = check_K(K, F, P)
+    if rotations is not None:
+        rotations = check_rotations(rotations, "rotations", n_frames=F)
+    return W, K, rotations

@@ -1,9 +1,13 @@
-"""Low-rank factorisation of the observed entries (nrsfm/stages/completion_fast.py)."""
+"""Low-rank factorisation of the observed entries (nrsfm/stages/completion/factorisation.py),
+the fill gain, and the completion stage's settings through ``reconstruct``."""
 
 import numpy as np
 import pytest
 
-from nrsfm.stages import completion_fast as cf
+from nrsfm.stages.completion import (MAX_GAIN, complete_low_rank, fill_gain,
+                                     observed_entries)
+from nrsfm.stages.completion.factorisation import _solve_structure, _truncated_svd
+from nrsfm.stages.completion.gain import mask_groups
 
 
 def _tracks(F=40, P=60, r=4, lost=0.3, late=0.1, noise=0.0, seed=0):
@@ -28,7 +32,7 @@ def _nan(W, obs):
 
 def test_noise_free_low_rank_tracks_are_filled_exactly():
     W, obs = _tracks()
-    res = cf.complete_low_rank(_nan(W, obs), 4, lags=(0,), tol=1e-12, max_iter=500)
+    res = complete_low_rank(_nan(W, obs), 4, lags=(0,), tol=1e-12, max_iter=500)
     miss = np.repeat(~obs, 2, axis=0)
     assert np.abs(res.W - W)[miss].max() < 1e-2 * W.std()
     np.testing.assert_array_equal(res.W[~miss], W[~miss])      # observed entries kept
@@ -39,7 +43,7 @@ def test_noise_free_low_rank_tracks_are_filled_exactly():
 
 def test_noisy_fill_error_is_at_the_noise_level_and_beats_mean_fill():
     W, obs = _tracks(noise=0.01, seed=1)
-    res = cf.complete_low_rank(_nan(W, obs), 4)
+    res = complete_low_rank(_nan(W, obs), 4)
     assert res.converged and res.n_iter < 300
     miss = np.repeat(~obs, 2, axis=0)
     det = np.repeat(res.determined()[None], 2 * obs.shape[0], axis=0) & miss
@@ -52,20 +56,20 @@ def test_noisy_fill_error_is_at_the_noise_level_and_beats_mean_fill():
 
 def test_completion_is_scale_and_offset_equivariant():
     W, obs = _tracks(noise=0.01, seed=2)
-    a = cf.complete_low_rank(_nan(W, obs), 4)
-    b = cf.complete_low_rank(_nan(1000.0 * W, obs), 4)
+    a = complete_low_rank(_nan(W, obs), 4)
+    b = complete_low_rank(_nan(1000.0 * W, obs), 4)
     np.testing.assert_allclose(b.W, 1000.0 * a.W, rtol=1e-6, atol=1e-6 * np.abs(b.W).max())
     shift = np.random.default_rng(0).standard_normal((W.shape[0], 1)) * 50
-    c = cf.complete_low_rank(_nan(W + shift, obs), 4)
+    c = complete_low_rank(_nan(W + shift, obs), 4)
     np.testing.assert_allclose(c.W, a.W + shift, atol=1e-5 * np.abs(c.W).max())
 
 
 def test_structure_step_matches_per_point_least_squares():
     W, obs = _tracks(F=12, P=15, r=3, seed=3)
-    Wz, obs = cf.observed_entries(_nan(W, obs))
+    Wz, obs = observed_entries(_nan(W, obs))
     rng = np.random.default_rng(0)
     M, t = rng.standard_normal((24, 3)), rng.standard_normal(24)
-    B, data = cf._solve_structure(Wz, cf._mask_groups(obs), M, t, 0.5)
+    B, data = _solve_structure(Wz, mask_groups(obs), M, t, 0.5)
     for p in range(15):
         rows = np.repeat(obs[:, p], 2)
         A = M[rows].T @ M[rows] + 0.5 * np.eye(3)
@@ -77,36 +81,36 @@ def test_structure_step_matches_per_point_least_squares():
 
 def test_fill_gain_is_small_for_long_tracks_and_infinite_for_undetermined_ones():
     W, _ = _tracks(F=30, P=8, r=4)
-    M = cf._truncated_svd(W - W.mean(axis=1, keepdims=True), 4)[0]   # smooth motion
+    M = _truncated_svd(W - W.mean(axis=1, keepdims=True), 4)[0]   # smooth motion
     obs = np.ones((30, 4), bool)
     obs[20:, 1] = False                                        # lost late: a short gap
     obs[3:, 2] = False                                         # lost early: extrapolated
     obs[1:, 3] = False                                         # one frame: 2 rows < r
-    g = cf.fill_gain(M, obs)
+    g = fill_gain(M, obs)
     assert g[0] <= 1.0 + 1e-9
-    assert g[0] < g[1] < cf.MAX_GAIN < g[2] < np.inf
+    assert g[0] < g[1] < MAX_GAIN < g[2] < np.inf
     assert g[3] == np.inf
 
 
 def test_observed_entries_pair_coordinates_and_name_sparse_frames_and_points():
     W, obs = _tracks(F=10, P=8, lost=0, late=0)
     W[0, 3] = np.nan                                           # x only: the point is missing
-    Wz, o = cf.observed_entries(W)
+    Wz, o = observed_entries(W)
     assert not o[0, 3] and o.sum() == o.size - 1 and Wz[1, 3] == 0.0
     W2 = W.copy()
     W2[4:6, :6] = np.nan
     with pytest.raises(ValueError, match="frame 2 observes 2 points"):
-        cf.observed_entries(W2)
+        observed_entries(W2)
     W3 = W.copy()
     W3[2:, 5] = np.nan
     with pytest.raises(ValueError, match="point 5 is observed in 1 frames"):
-        cf.observed_entries(W3)
+        observed_entries(W3)
     with pytest.raises(ValueError, match=r"shape \(2F, P\)"):
-        cf.observed_entries(np.zeros((5, 4)))
+        observed_entries(np.zeros((5, 4)))
     with pytest.raises(ValueError, match="infinite"):
-        cf.observed_entries(np.full((4, 4), np.inf))
+        observed_entries(np.full((4, 4), np.inf))
     with pytest.raises(ValueError, match="rank must be"):
-        cf.complete_low_rank(W, 8)
+        complete_low_rank(W, 8)
 
 
 def test_lags_tie_a_missing_entry_to_its_own_smooth_trajectory():
@@ -115,7 +119,7 @@ def test_lags_tie_a_missing_entry_to_its_own_smooth_trajectory():
     miss = np.repeat(~obs, 2, axis=0)
     err = {}
     for lags in ((0,), (-1, 0, 1)):
-        res = cf.complete_low_rank(_nan(W, obs), 8, lags=lags)
+        res = complete_low_rank(_nan(W, obs), 8, lags=lags)
         assert res.B.shape == (8, 12 * len(lags))
         err[lags] = np.sqrt(np.mean((res.W - W)[miss] ** 2))
     assert err[(-1, 0, 1)] < 0.3 * err[(0,)], err
@@ -125,10 +129,10 @@ def test_a_track_seen_in_two_frames_is_filled_better_under_the_tracks_prior():
     for seed in (6, 7):
         W, obs = _tracks(F=40, P=60, r=4, noise=0.01, seed=seed)
         obs[2:, 0] = False                                     # 2 frames: b_0 undetermined
-        res = cf.complete_low_rank(_nan(W, obs), 4)
+        res = complete_low_rank(_nan(W, obs), 4)
         assert not res.determined()[0] and res.determined()[1:].mean() > 0.5
-        Wz, o = cf.observed_entries(_nan(W, obs))
-        B = cf._solve_structure(Wz, cf._mask_groups(o), res.M, res.t, res.lam)[0]
+        Wz, o = observed_entries(_nan(W, obs))
+        B = _solve_structure(Wz, mask_groups(o), res.M, res.t, res.lam)[0]
         ridge = res.M @ B[:, 0] + res.t                       # without the prior
         err = lambda x: np.sqrt(np.mean((x - W[:, 0])[4:] ** 2))  # noqa: E731
         assert err(res.W[:, 0]) < 0.6 * err(ridge)
@@ -150,15 +154,16 @@ def test_lags_rule_and_completion_setting_through_reconstruct():
     with pytest.raises(ValueError, match="completion"):
         MeasurementSettings(completion="svd")
     seq = dt.make_synthetic(F=40, P=30, K=1, seed=4)
-    Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="tracking")
+    Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="uniform")
     res = {}
     for name in ("factorisation", "soft_impute"):
         s = Settings(measurement=MeasurementSettings(completion=name, lags=(0,)))
         r = nrsfm.reconstruct(Wm, 1, settings=s)
         res[name] = r
         assert r.completion.lags == (0,) and r.params["settings"].measurement.completion == name
-    assert type(res["factorisation"].completion).__name__ == "FastCompletion"
-    assert type(res["soft_impute"].completion).__name__ == "CompletionResult"
+        assert r.completion.converged
+    assert res["factorisation"].completion.method == "factorisation"
+    assert res["soft_impute"].completion.method == "soft_impute"
     auto = nrsfm.reconstruct(Wm, 1)               # default auto: no lags -> factorisation
     assert auto.completion.lags == choose_lags(auto.observed, 3)
     np.testing.assert_allclose(auto.shapes, res["factorisation"].shapes)
@@ -184,13 +189,28 @@ def test_auto_completion_follows_the_lags_rule():
     import data_tools as dt
     import nrsfm
 
-    small = dt.make_synthetic(F=40, P=12, K=3, seed=2)           # 12 points, rank 9: lags
+    small = dt.make_synthetic(F=40, P=15, K=3, seed=2)           # 15 points, rank 9: lags
     Wm, _ = dt.drop_tracks(small.W, 0.2, seed=1, pattern="uniform")
     res = nrsfm.reconstruct(Wm, 3)
-    assert res.completion.lags == (-1, 0, 1)
-    assert type(res.completion).__name__ == "CompletionResult"
+    assert res.completion.lags == (-1, 0, 1) and res.completion.converged
+    assert res.completion.method == "soft_impute"
     wide = dt.make_synthetic(F=40, P=60, K=1, seed=2)            # 60 points, rank 3: no lags
     Wm, _ = dt.drop_tracks(wide.W, 0.2, seed=1, pattern="uniform")
     res = nrsfm.reconstruct(Wm, 1)
     assert res.completion.lags == (0,)
-    assert type(res.completion).__name__ == "FastCompletion"
+    assert res.completion.method == "factorisation"
+
+
+def test_reconstruct_warns_when_the_completion_stops_at_its_cap():
+    """Soft-impute extrapolates lost tracks slowly: on this input it stops at its cap of
+    500 iterations, and ``reconstruct`` says so."""
+    import data_tools as dt
+    import nrsfm
+    from nrsfm.settings import MeasurementSettings, Settings
+
+    seq = dt.make_synthetic(F=40, P=30, K=1, seed=4)
+    Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="tracking")
+    s = Settings(measurement=MeasurementSettings(completion="soft_impute", lags=(0,)))
+    with pytest.warns(RuntimeWarning, match=r"iteration cap \(500\) before converging"):
+        r = nrsfm.reconstruct(Wm, 1, settings=s)
+    assert not r.completion.converged and r.completion.n_iter == 500

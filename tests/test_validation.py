@@ -63,7 +63,7 @@ def test_K_limit_is_min_of_2F_and_P_minus_1():
 
 
 def test_unknown_method(seq):
-    with pytest.raises(ValueError, match="unknown method"):
+    with pytest.raises(ValueError, match="method must be one of .*got .magic."):
         nrsfm.reconstruct(seq.W, 2, method="magic")
 
 

@@ -352,7 +352,11 @@ def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
 
     tr = track_sparse(video.frames, detect_every=3)
     assert (tr.start > 0).any()
-    vr = reconstruct_tracks(tr.W, 1, method="pseudo_inverse")
+    # on these 12 frames the factorisation stops at its 300-iteration cap (uncapped it
+    # converges at 430, filled entries within a median 0.04 px): asserted, so that a
+    # change of the cap or of the stopping rule shows here
+    with pytest.warns(RuntimeWarning, match="iteration cap"):
+        vr = reconstruct_tracks(tr.W, 1, method="pseudo_inverse")
     assert vr.missing_data and vr.result.fill_gain is not None
     und = vr.result.undetermined
     assert 0 < und.sum() < und.size                           # short late tracks

@@ -30,11 +30,12 @@ def shape_for_rotations(W, rotations, K, rotation_stage, settings, say):
         The rotations the shapes were solved with.
     shape_stage : ShapeResult
     """
-    if rotation_stage is None or not settings.select_rotations:
-        return rotations, solve_shape(W, rotations, K, settings, say)
-    cands = rotation_candidates(rotation_stage)
-    pick, results, objectives = select_by_shape_objective(
-        cands, lambda R: solve_shape(W, R, K, settings, say))
+    select = rotation_stage is not None and settings.select_rotations
+    cands = rotation_candidates(rotation_stage) if select else [("given", rotations)]
+    results = [solve_shape(W, R, K, settings, say) for _, R in cands]
+    if not select:
+        return rotations, results[0]
+    pick, objectives = select_by_shape_objective(results)
     names = [name for name, _ in cands]
     rotation_stage.info["shape_selection"] = dict(
         candidates=names, objectives=objectives, chosen=names[pick],
@@ -83,29 +84,26 @@ def shape_objective(shape_result):
     return None if value is None or not np.isfinite(value) else float(value)
 
 
-def select_by_shape_objective(candidates, solve):
-    """The rotations whose shapes reach the lowest shape objective (deterministic).
+def select_by_shape_objective(results):
+    """The index of the shape result with the lowest shape objective (deterministic).
 
     Parameters
     ----------
-    candidates : list of (name, (F, 3, 3) ndarray)
-        From :func:`rotation_candidates`; ties keep the earlier entry.
-    solve : callable
-        ``solve(R)`` -> a shape result (same W, K, prior and solver for every candidate).
+    results : list of shape results
+        One per rotation candidate (:func:`rotation_candidates`; the same W, K, prior and
+        solver for each); ties keep the earlier entry.
 
     Returns
     -------
     index : int
-    results : list
-        The shape result of each candidate.
+        0 when a result has no objective.
     objectives : list of float or None
     """
-    results = [solve(R) for _, R in candidates]
     objectives = [shape_objective(r) for r in results]
     index = 0
     if all(v is not None for v in objectives):
         index = int(np.argmin(objectives))         # first minimum on ties
-    return index, results, objectives
+    return index, objectives
 
 
 def depth_sensitivity(candidates, results):

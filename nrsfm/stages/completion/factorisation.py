@@ -24,10 +24,11 @@ CVPR 2005, on its slow convergence): the factors are re-balanced after every swe
 ``k^(1/3)`` when that lowers the cost (Bro's line search for alternating least squares).
 
 Tracks seen in a few frames only: a track's fill is an extrapolation whose noise gain
-(:func:`fill_gain`) grows without bound as its observed frames shrink. M and t are fitted
-on the *determined* tracks (gain <= ``MAX_GAIN``, re-chosen up to ``MAX_ROUNDS`` times);
-every track's b_p is then solved with that M. ``FastCompletion.determined()`` says which
-tracks the data pin down; the others are filled, but their 3D cannot be trusted.
+(:func:`~nrsfm.stages.completion.gain.fill_gain`) grows without bound as its observed
+frames shrink. M and t are fitted on the *determined* tracks (gain <= ``MAX_GAIN``,
+re-chosen up to ``MAX_ROUNDS`` times); every track's b_p is then solved with that M.
+``Completion.determined()`` says which tracks the data pin down; the others are filled,
+but their 3D cannot be trusted.
 
 ``lags=(-1, 0, 1)`` factorises the time-lagged matrix ``[S_-1 W, W, S_+1 W]`` instead (a
 missing entry is the mean of its copies' fits), which ties a missing entry to its own
@@ -42,127 +43,21 @@ the completion times c); a per-row offset added to W is carried by t.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
-from .completion import _average_copies, _lag, _lag_index, _refuse_sparse
+from .gain import MAX_GAIN, fill_gain, mask_groups, normal_matrices
+from .lags import NO_LAGS, average_copies, check_lags, lag, lag_index
+from .masks import observed_entries
+from .result import Completion
 
-__all__ = ["FastCompletion", "complete_low_rank", "fill_gain", "observed_entries"]
+__all__ = ["LAM_FRACTION", "complete_low_rank"]
 
 #: Ridge as a fraction of sigma_1 (see the module docstring).
 LAM_FRACTION = 1e-4
-#: A track is "determined" when its fill amplifies measurement noise at most this much
-#: (see :func:`fill_gain`).
-MAX_GAIN = 3.0
-#: Default temporal lags (frames).
-LAGS = (0,)
 #: Rounds of (choose the determined tracks, fit M on them).
 MAX_ROUNDS = 4
 #: Determined tracks per dimension of b_p needed to estimate the prior of the short tracks.
 PRIOR_SAMPLES = 10
-
-
-@dataclass
-class FastCompletion:
-    """Result of :func:`complete_low_rank`.
-
-    Attributes
-    ----------
-    W : (2F, P) ndarray
-        Completed matrix: observed entries unchanged, missing ones ``M B + t``.
-    observed : (F, P) bool ndarray
-        True where the point was observed in the frame.
-    M : (2F, r) ndarray
-        Motion factor (row pairs per frame).
-    B : (r, n_lags P) ndarray
-        Structure factor (one column per point and lag, lag-major).
-    t : (2F,) ndarray
-        Per-row offset (the per-frame translation, before centring).
-    rank, n_iter : int
-    lam : float
-        Ridge weight (input units).
-    converged : bool
-        The relative decrease of the objective fell below ``tol`` before ``max_iter``.
-    gain : (P,) ndarray
-        :func:`fill_gain` of each point's lag-0 column.
-    lags : tuple of int
-    history : dict of ndarrays
-        ``cost`` per iteration (objective / (1/2 ||P_Omega(W - mean)||^2)).
-    """
-
-    W: np.ndarray
-    observed: np.ndarray
-    M: np.ndarray
-    B: np.ndarray
-    t: np.ndarray
-    rank: int
-    lam: float
-    n_iter: int
-    converged: bool
-    gain: np.ndarray = None
-    lags: tuple = (0,)
-    history: dict = field(default_factory=dict)
-
-    @property
-    def missing_fraction(self):
-        return float(1.0 - self.observed.mean())
-
-    def determined(self, max_gain=MAX_GAIN):
-        """(P,) bool: tracks whose filled entries amplify noise at most ``max_gain`` x."""
-        return self.gain <= max_gain
-
-    def rms_residual(self):
-        """RMS of the lag-0 fit on the observed entries (input units)."""
-        o2 = np.repeat(self.observed, 2, axis=0)
-        P = self.observed.shape[1]
-        j = self.lags.index(0)
-        fit = self.M @ self.B[:, j * P:(j + 1) * P] + self.t[:, None]
-        return float(np.sqrt(np.mean((self.W - fit)[o2] ** 2)))
-
-
-def observed_entries(W, observed=None):
-    """Split W into zero-filled values and the (F, P) observation mask.
-
-    Parameters
-    ----------
-    W : (2F, P) or (F, 2, P) array_like
-        NaN marks a missing coordinate; a point is observed in a frame when both are finite.
-    observed : (F, P) bool array_like, optional
-        Further restricts the mask.
-
-    Returns
-    -------
-    Wz : (2F, P) ndarray
-        W with every unobserved entry set to 0.
-    observed : (F, P) bool ndarray
-
-    Raises
-    ------
-    ValueError
-        Bad shapes, infinite entries, a frame observing fewer than 3 points or a point
-        observed in fewer than 2 frames (named).
-    """
-    A = np.array(W, dtype=float)
-    if A.ndim == 3 and A.shape[1] == 2:
-        A = A.reshape(2 * A.shape[0], A.shape[2])
-    if A.ndim != 2 or A.shape[0] % 2:
-        raise ValueError(f"W must have shape (2F, P) or (F, 2, P); got {np.shape(W)}")
-    if np.isinf(A).any():
-        raise ValueError(f"W contains {int(np.isinf(A).sum())} infinite entries "
-                         "(use NaN for a missing observation)")
-    F, P = A.shape[0] // 2, A.shape[1]
-    obs = np.isfinite(A).reshape(F, 2, P).all(axis=1)
-    if observed is not None:
-        observed = np.asarray(observed, dtype=bool)
-        if observed.shape != (F, P):
-            raise ValueError(f"observed must have shape (F, P) = ({F}, {P}); "
-                             f"got {observed.shape}")
-        obs &= observed
-    _refuse_sparse(obs.sum(axis=1), 3, "frame", "observes {n} points")
-    _refuse_sparse(obs.sum(axis=0), 2, "point", "is observed in {n} frames")
-    Wz = np.where(np.repeat(obs, 2, axis=0), A, 0.0)
-    return Wz, obs
 
 
 def _truncated_svd(A, r):
@@ -179,27 +74,18 @@ def _truncated_svd(A, r):
     return V, s, (V * inv).T @ A
 
 
-def _mask_groups(obs):
-    """Points that share an observation pattern: ``(patterns (U, F) bool, index (P,))``."""
-    packed = np.packbits(obs.T, axis=1)
-    _, first, index = np.unique(packed, axis=0, return_index=True, return_inverse=True)
-    return obs[:, first].T, index.ravel()
-
-
 def _solve_structure(Wz, groups, M, t, lam, prior_mean=None):
     """B-step: per point, ridge least squares over the frames that observe it.
 
-    ``groups`` from :func:`_mask_groups`: the r x r normal matrix depends on the point only
+    ``groups`` from :func:`mask_groups`: the r x r normal matrix depends on the point only
     through its observation pattern, so it is inverted once per pattern. ``lam``: the
     ridge weight, or an (r, r) prior precision with ``prior_mean`` (r,). Returns
     ``(B, data)``: B (r, P) and ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the
     normal equations.
     """
     patterns, index = groups
-    F2, r = M.shape
-    Mf = M.reshape(F2 // 2, 2, r)
-    G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
-    A = (patterns.astype(float) @ G).reshape(-1, r, r)
+    r = M.shape[1]
+    A = normal_matrices(M, patterns)[1]
     reg = lam * np.eye(r) if np.ndim(lam) == 0 else lam
     inv = np.linalg.inv(A + reg)                              # (U, r, r)
     o2 = np.repeat(patterns, 2, axis=1).astype(float)         # (U, 2F)
@@ -249,7 +135,7 @@ def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     accelerate alternating least squares, 1998): plain alternation crawls along the
     shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
     """
-    groups = _mask_groups(obs)
+    groups = mask_groups(obs)
 
     def f(M, t):                                              # B-step and the cost
         B, data = _solve_structure(Wz, groups, M, t, lam)
@@ -275,9 +161,8 @@ def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     return M, t, cost, False
 
 
-def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRACTION,
-                      tol=1e-6,
-                      max_iter=300):
+def complete_low_rank(W, rank, observed=None, *, lags=NO_LAGS, lam_fraction=LAM_FRACTION,
+                      tol=1e-6, max_iter=300):
     """Fill the missing entries of W by a rank-r factorisation of its observed entries.
 
     Parameters
@@ -290,8 +175,9 @@ def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRA
         Restricts the observation mask further (default: the NaN pattern).
     lags : sequence of int
         Temporal lags (frames), containing 0: the factorisation is of the lagged matrix
-        ``[S_d W]`` (2F, n_lags P), as in :mod:`nrsfm.stages.completion`, and a missing entry is
-        the mean of its copies' fits; ``(0,)`` factorises W itself (frames in any order).
+        ``[S_d W]`` (2F, n_lags P) (:mod:`~nrsfm.stages.completion.lags`), and a missing
+        entry is the mean of its copies' fits; ``(0,)`` factorises W itself (frames in
+        any order).
     lam_fraction : float
         Ridge weight as a fraction of sigma_1; positive.
     tol : float
@@ -301,7 +187,9 @@ def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRA
 
     Returns
     -------
-    FastCompletion
+    Completion
+        ``method == "factorisation"``, with the factors ``M``, ``B``, ``t``, the ridge
+        ``lam``, ``history["cost"]`` and ``fill_gain`` under M (lag-0 columns).
 
     Raises
     ------
@@ -317,21 +205,20 @@ def complete_low_rank(W, rank, observed=None, *, lags=LAGS, lam_fraction=LAM_FRA
         raise ValueError(f"lam_fraction must be positive; got {lam_fraction!r}")
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
-    lags = tuple(int(d) for d in lags)
-    if 0 not in lags or len(set(lags)) != len(lags):
-        raise ValueError(f"lags must be distinct integers including 0; got {lags}")
-    idx = _lag_index(F, lags)
-    Hz, obs_h = _lag(Wz, idx), _lag(obs, idx)
+    lags = check_lags(lags)
+    idx = lag_index(F, lags)
+    Hz, obs_h = lag(Wz, idx), lag(obs, idx)
     M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
     gain_h = fill_gain(M, obs_h)
     B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
-    fit = _average_copies(M @ B + t[:, None], idx)
+    fit = average_copies(M @ B + t[:, None], idx)
     o2 = np.repeat(obs, 2, axis=0)
     j = lags.index(0)
     gain = gain_h[j * P:(j + 1) * P]
-    return FastCompletion(W=np.where(o2, Wz, fit), observed=obs, M=M, B=B, t=t, rank=r,
-                          lam=lam, n_iter=len(cost), converged=converged, gain=gain,
-                          lags=lags, history=dict(cost=np.asarray(cost)))
+    return Completion(W=np.where(o2, Wz, fit), observed=obs, method="factorisation",
+                      lags=lags, rank=r, n_iter=len(cost), converged=converged,
+                      fill_gain=gain, history=dict(cost=np.asarray(cost)), lam=lam, M=M,
+                      B=B, t=t)
 
 
 def _posterior_structure(Wz, obs, M, t, B, determined):
@@ -353,7 +240,7 @@ def _posterior_structure(Wz, obs, M, t, B, determined):
     sigma2 = float(np.mean(res ** 2))
     mu = B[:, determined].mean(axis=1)
     prec = sigma2 * np.linalg.pinv(np.cov(B[:, determined]), hermitian=True)
-    return _solve_structure(Wz, _mask_groups(obs), M, t, prec, prior_mean=mu)[0]
+    return _solve_structure(Wz, mask_groups(obs), M, t, prec, prior_mean=mu)[0]
 
 
 def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
@@ -383,41 +270,6 @@ def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
         if new.sum() <= r or np.array_equal(new, core) or len(cost) >= max_iter:
             break
         core = new
-    B = _solve_structure(Wz, _mask_groups(obs), M, t, lam)[0]
+    B = _solve_structure(Wz, mask_groups(obs), M, t, lam)[0]
     return M, B, t, lam, cost, converged
 
-
-
-def fill_gain(M, observed):
-    """Noise gain of each track's filled entries (unitless, scale-free).
-
-    A point's structure column b_p is fitted to the frames that observe it, normal matrix
-    ``A_p = sum_{f observed} M_f' M_f``; the fill ``M_f b_p`` of a frame then has
-    covariance ``sigma^2 M_f A_p^{-1} M_f'`` for white measurement noise sigma. The gain
-    is ``max_f sqrt(lambda_max(M_f A_p^{-1} M_f'))`` over all frames: at most 1 inside the
-    observed frames of a complete track, large when a short track is extrapolated.
-
-    Parameters
-    ----------
-    M : (2F, r) ndarray
-    observed : (F, P) bool ndarray
-
-    Returns
-    -------
-    gain : (P,) ndarray
-    """
-    F2, r = M.shape
-    observed = np.asarray(observed, dtype=bool)
-    if observed.shape[0] * 2 != F2:
-        raise ValueError(f"observed must have shape (F, P) with 2F = {F2}; "
-                         f"got {observed.shape}")
-    patterns, index = _mask_groups(observed)
-    Mf = M.reshape(F2 // 2, 2, r)
-    G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
-    A = (patterns.astype(float) @ G).reshape(-1, r, r)
-    Ai = np.linalg.pinv(A, hermitian=True)                    # (U, r, r)
-    lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf)           # (U, F, 2, 2)
-    gain = np.sqrt(np.clip(np.linalg.eigvalsh(lev)[..., -1], 0.0, None).max(axis=1))
-    w = np.linalg.eigvalsh(A)
-    gain[w[:, 0] <= 1e-12 * w[:, -1]] = np.inf                # b_p not determined at all
-    return gain[index]

@@ -1,0 +1,84 @@
+"""Missing data: low-rank completion of the measurement matrix W (paper Sec. 4e-ii).
+
+The paper completes W with Cabral et al.'s method and then runs its algorithm on the
+completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``) through
+:func:`complete`, which returns one :class:`Completion`. Two completions, chosen by
+:class:`MeasurementSettings` ``.completion``:
+
+* ``soft_impute`` (:mod:`.soft_impute`): nuclear-norm completion of the time-lagged W,
+  a full SVD per iteration;
+* ``factorisation`` (:mod:`.factorisation`): a rank-3K factorisation of the observed
+  entries, no SVD after the start (it scales to video);
+* ``auto`` (default): soft-impute where the lags rule (:func:`choose_lags`) asks for time
+  lags (few points per frame for the rank: MoCap-sized W, where the full SVD is cheap), the
+  factorisation elsewhere (dense tracks). Measurements: ``docs/missing_data_scale.md``.
+
+The modules import one way only: ``settings``, ``lags``, ``masks``, ``gain`` (no
+imports inside the package) <- ``result`` <- ``soft_impute``, ``factorisation`` <- this
+module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+from ..measurement import measure
+from .factorisation import complete_low_rank
+from .gain import MAX_GAIN, fill_gain
+from .lags import NEIGHBOUR_LAGS, NO_LAGS, choose_lags
+from .masks import observed_entries, observed_mask
+from .result import Completion
+from .settings import COMPLETIONS, MISSING, MeasurementSettings
+from .soft_impute import complete_measurements
+
+__all__ = ["COMPLETIONS", "Completion", "MAX_GAIN", "MISSING", "MeasurementSettings",
+           "NEIGHBOUR_LAGS", "NO_LAGS", "choose_lags", "complete", "complete_low_rank",
+           "complete_measurements", "fill_gain", "observed_entries", "observed_mask"]
+
+
+def complete(W, K, settings):
+    """Fill the missing entries of W for K shape bases, as ``settings`` say.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        NaN where missing.
+    K : int
+        Rank of the completion: 3K (Eq. 1).
+    settings : MeasurementSettings
+        ``completion`` and ``lags``.
+
+    Returns
+    -------
+    Completion
+        With ``method`` the completion that ran (``auto`` resolved) and ``fill_gain``
+        under the rank-3K motion ``M_hat`` of the completed W
+        (:func:`nrsfm.stages.measurement.measure`: the motion the later stages use).
+
+    Raises
+    ------
+    ValueError
+        A frame or point with too few observations (named), bad shapes.
+
+    Warns
+    -----
+    RuntimeWarning
+        When the completion stopped at its iteration cap before converging.
+    """
+    observed = observed_mask(W)
+    lags = (choose_lags(observed, 3 * K) if settings.lags == "auto"
+            else tuple(settings.lags))
+    method = settings.completion
+    if method == "auto":                  # the full SVD is cheap exactly where lags are due
+        method = "soft_impute" if len(lags) > 1 else "factorisation"
+    if method == "soft_impute":
+        result = complete_measurements(W, observed, lags=lags)
+    else:
+        result = complete_low_rank(W, 3 * K, observed, lags=lags)
+    if not result.converged:
+        warnings.warn(f"the completion of W stopped at its iteration cap ({result.n_iter}) "
+                      f"before converging: the filled entries may be inaccurate",
+                      RuntimeWarning, stacklevel=3)
+    M_hat = measure(result.W, K).factorization.M_hat
+    return dataclasses.replace(result, fill_gain=fill_gain(M_hat, result.observed))

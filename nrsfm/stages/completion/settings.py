@@ -1,0 +1,62 @@
+"""Settings of the completion stage: what to do with missing observations, and how."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["COMPLETIONS", "MISSING", "MeasurementSettings"]
+
+#: What to do with missing observations (``MeasurementSettings.missing``).
+MISSING = ("complete", "error")
+#: How W is completed (``MeasurementSettings.completion``); the first is the default.
+COMPLETIONS = ("auto", "factorisation", "soft_impute")
+
+
+def _choices(values):
+    """``{"a", "b"}``: a tuple of allowed values as numpydoc writes a parameter's type."""
+    return "{" + ", ".join(f'"{v}"' for v in values) + "}"
+
+
+def _one_of(name, value, allowed):
+    if value not in allowed:
+        raise ValueError(f"{name} must be one of {list(allowed)}; got {value!r}")
+
+
+@dataclass(frozen=True)
+class MeasurementSettings:
+    __doc__ = f"""Measurement stage's missing data: refuse it, or complete W, and how.
+
+    Attributes
+    ----------
+    missing : {_choices(MISSING)}
+        Missing observations (NaN or masked): fill W by low-rank completion
+        (:mod:`nrsfm.stages.completion`), or refuse.
+    completion : {_choices(COMPLETIONS)}
+        How W is completed: ``factorisation``, a rank-3K factorisation of the observed
+        entries (:func:`nrsfm.stages.completion.factorisation.complete_low_rank`; it
+        scales to dense tracks), or ``soft_impute``, the nuclear-norm completion of the
+        time-lagged matrix with a full SVD per iteration
+        (:func:`nrsfm.stages.completion.soft_impute.complete_measurements`). ``auto``
+        (default): ``soft_impute`` where the lags rule asks for time lags (few points per
+        frame for the rank: a small W such as MoCap's, where the full SVD is cheap and the
+        lagged factorisation measured 2-10x slower and stops at its iteration cap), else
+        ``factorisation``. Measurements: ``docs/missing_data_scale.md``.
+    lags : "auto" or tuple of int
+        Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
+        of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
+    """
+
+    missing: str = MISSING[0]
+    completion: str = COMPLETIONS[0]
+    lags: object = "auto"
+
+    def __post_init__(self):
+        _one_of("missing", self.missing, MISSING)
+        _one_of("completion", self.completion, COMPLETIONS)
+        if self.lags != "auto":
+            lags = tuple(self.lags) if isinstance(self.lags, (tuple, list)) else None
+            if (lags is None or not all(isinstance(d, int) for d in lags) or 0 not in lags
+                    or len(set(lags)) != len(lags)):
+                raise ValueError(f"lags must be 'auto' or distinct integers including 0; "
+                                 f"got {self.lags!r}")
+            object.__setattr__(self, "lags", lags)

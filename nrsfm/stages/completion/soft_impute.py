@@ -1,0 +1,152 @@
+"""Soft-impute: nuclear-norm completion of the time-lagged W (paper Sec. 4e-ii).
+
+Method (choice, measurements and reasons in ``docs/experiments.md``): nuclear-norm
+completion with free per-row offsets (the per-frame translation) of the time-lagged matrix
+
+    H(W) = [S_{-1} W, W, S_{+1} W]      (2F, 3P),   S_d: frames shifted by d,
+
+    minimise_{L, t}  1/2 ||P_Omega(H(W) - L - t 1')||_F^2 + tau ||L||_*,
+
+with every copy of a missing entry kept equal. The lags put a frame's neighbours beside it
+in the same row, so a missing point is seen through its own trajectory at the adjacent
+frames as well as through the other points: the rows of H are still low-rank (the
+trajectories are smooth), and a row of H has three times the observed entries of a row of
+W. ``lags=(0,)`` is plain nuclear-norm completion of W (for frames in no particular order).
+Solved by soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010): fill the missing entries
+with the current estimate, take the row means as t, soft-threshold the singular values of
+the centred H by tau, average the copies of each missing entry, repeat. tau is continued
+from ``sigma_1 / 10`` down to its final value ``tau = 1e-3 sigma_1`` (sigma_1: the largest
+singular value of the mean-filled, row-centred H), with warm starts: the continuation idea
+of Cabral et al.'s rank continuation (ICCV 2013), whose bilinear objective has the same
+minimisers as the nuclear norm when the factor rank is large enough. The regulariser is
+computed from W alone and the completion is scale-equivariant (W times c gives the
+completion times c).
+
+The paper completes W with Cabral et al.'s method and then runs its algorithm on the
+completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``). Its
+default completion ``"auto"`` (:func:`nrsfm.stages.completion.complete`) runs soft-impute
+where the lags rule asks for lags (MoCap-sized W: few points per frame for the rank, where
+the full SVD per iteration is cheap), and the factorisation of
+:mod:`~nrsfm.stages.completion.factorisation` elsewhere (dense tracks).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .lags import NEIGHBOUR_LAGS, average_copies, check_lags, lag, lag_index
+from .masks import observed_mask
+from .result import Completion
+
+__all__ = ["TAU_FRACTION", "complete_measurements"]
+
+#: Final threshold as a fraction of sigma_1 (see the module docstring).
+TAU_FRACTION = 1e-3
+
+
+def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTION,
+                          lags=NEIGHBOUR_LAGS, n_stages=8, tol=1e-6, max_iter=500):
+    """Fill the missing entries of W by nuclear-norm completion (soft-impute).
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+        Measurements; NaN marks a missing entry (when ``observed`` is None).
+    observed : (F, P) bool array_like, optional
+        True where observed; default from the NaN pattern of W
+        (:func:`~nrsfm.stages.completion.masks.observed_mask`).
+    tau : float, optional
+        Final singular value threshold in W's units; default ``tau_fraction * sigma_1``.
+    tau_fraction : float
+        See ``tau``; must be positive.
+    lags : sequence of int
+        Temporal lags (frames) of the lagged matrix, containing 0; ``(0,)``: plain
+        nuclear-norm completion of W (use it when the frames are not a time sequence).
+    n_stages : int
+        Continuation stages, tau decreasing geometrically from ``sigma_1 / 10``.
+    tol : float
+        A stage stops when the relative change of the filled entries is below ``tol``.
+    max_iter : int
+        Total iteration cap; ``converged`` is False when it is reached.
+
+    Returns
+    -------
+    Completion
+        ``method == "soft_impute"``, with ``tau`` and ``history`` (``tau``, ``change``).
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, a frame or point with too few observations, bad constants.
+    """
+    W, observed = _checked(W, observed)
+    if not (np.isfinite(tau_fraction) and tau_fraction > 0):
+        raise ValueError(f"tau_fraction must be positive; got {tau_fraction!r}")
+    lags = check_lags(lags)
+    if n_stages < 1 or max_iter < 1:
+        raise ValueError(f"n_stages and max_iter must be >= 1; got {n_stages}, {max_iter}")
+    obs2 = np.repeat(observed, 2, axis=0)                       # (2F, P)
+    result = dict(observed=observed, method="soft_impute", lags=lags)
+    if obs2.all():
+        return Completion(W=W, tau=0.0, rank=int(np.linalg.matrix_rank(W)), n_iter=0,
+                          converged=True, history=dict(tau=np.zeros(0), change=np.zeros(0)),
+                          **result)
+    Wz = np.where(obs2, W, 0.0)
+    t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
+    Z = np.where(obs2, W, t)                                    # mean fill
+    idx = lag_index(W.shape[0] // 2, lags)                      # (n_lags, F)
+    H = lag(Z, idx)
+    sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
+    if not sigma1 > 0:
+        raise ValueError("the observed entries of W have no spread: nothing to complete")
+    tau_final = tau_fraction * sigma1 if tau is None else float(tau)
+    if not (np.isfinite(tau_final) and tau_final > 0):
+        raise ValueError(f"tau must be positive; got {tau!r}")
+    taus = np.geomspace(max(sigma1 / 10, tau_final), tau_final, n_stages)
+    rank, n_iter, converged, history = _continuation(Z, ~obs2, idx, taus, tol, max_iter)
+    return Completion(W=Z, tau=float(tau_final), rank=rank, n_iter=n_iter,
+                      converged=converged, history=history, **result)
+
+
+def _checked(W, observed):
+    """(W as a float (2F, P) copy with NaN where unobserved, its (F, P) mask)."""
+    W = np.array(W, dtype=float, copy=True)
+    if W.ndim != 2 or W.shape[0] % 2:
+        raise ValueError(f"W must have shape (2F, P); got {W.shape}")
+    F, P = W.shape[0] // 2, W.shape[1]
+    if observed is None:
+        return W, observed_mask(W)
+    observed = np.asarray(observed, dtype=bool)
+    if observed.shape != (F, P):
+        raise ValueError(f"observed must have shape (F, P) = ({F}, {P}); "
+                         f"got {observed.shape}")
+    W[np.repeat(~observed, 2, axis=0)] = np.nan
+    return W, observed & observed_mask(W)
+
+
+def _continuation(Z, missing, idx, taus, tol, max_iter):
+    """Soft-impute over the thresholds ``taus``, warm-started, filling ``Z[missing]`` in
+    place. Returns ``(rank, n_iter, converged, history)``."""
+    hist_tau, hist_change = [], []
+    n_iter, converged, rank = 0, False, 0
+    for stage, tau_s in enumerate(taus):
+        last = stage == len(taus) - 1
+        converged = False
+        while n_iter < max_iter:
+            n_iter += 1
+            H = lag(Z, idx)
+            t = H.mean(axis=1, keepdims=True)                   # free row offsets
+            U, s, Vt = np.linalg.svd(H - t, full_matrices=False)
+            s = np.maximum(s - tau_s, 0.0)                      # nuclear-norm prox
+            rank = int(np.count_nonzero(s))
+            L = average_copies((U[:, :rank] * s[:rank]) @ Vt[:rank] + t, idx)
+            change = (np.linalg.norm(L[missing] - Z[missing])
+                      / max(np.linalg.norm(Z), 1e-300))
+            Z[missing] = L[missing]
+            hist_tau.append(tau_s)
+            hist_change.append(change)
+            if change < (tol if last else 10 * tol):
+                converged = True
+                break
+    return rank, n_iter, converged, dict(tau=np.asarray(hist_tau),
+                                         change=np.asarray(hist_change))
