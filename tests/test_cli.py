@@ -264,6 +264,29 @@ def test_mocap_without_data_folder(tmp_path):
     assert_one_line_failure(proc, "NRSFM_DATA", "--data", code=2)
 
 
+@pytest.mark.parametrize("form", ["parent", "mocap"])
+def test_mocap_data_folder_both_forms(tmp_path, form):
+    """``--data`` and ``NRSFM_DATA`` take the folder that holds mocap/ or mocap/ itself."""
+    folder = tmp_path / "data" / "mocap"
+    folder.mkdir(parents=True)
+    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.random.default_rng(0)
+                                            .standard_normal((30, 12))})
+    given = folder.parent if form == "parent" else folder
+    for args, env in (((("--data", given)), None), ((), {"NRSFM_DATA": str(given)})):
+        proc = nrsfm("mocap", "shark", *args, "--K", "1", "--quiet", cwd=tmp_path,
+                     env_extra=env)
+        assert proc.returncode == 0, proc.stderr
+        assert "errors against ground truth: e3d" in proc.stdout
+
+
+def test_mocap_missing_file_names_the_folder_to_use(tmp_path):
+    (tmp_path / "data" / "mocap").mkdir(parents=True)
+    scipy.io.savemat(tmp_path / "data" / "mocap" / "pickup.mat", {"W": np.zeros((2, 2))})
+    proc = nrsfm("mocap", "pickup", "--data", tmp_path, cwd=tmp_path)
+    assert_one_line_failure(proc, f"looked in {tmp_path / 'mocap'} (no such folder) and "
+                                  f"{tmp_path};", f"{tmp_path / 'data'} holds it", code=1)
+
+
 def test_given_rotations_without_ground_truth_on_mocap(tmp_path):
     folder = tmp_path / "mocap"
     folder.mkdir()

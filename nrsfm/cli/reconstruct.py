@@ -74,8 +74,8 @@ def cmd_mocap(args):
         raise UsageError(f"unknown MoCap sequence {args.name!r}; expected one of "
                          f"{', '.join(MOCAP_NAMES)}")
     if args.data is None and not os.environ.get("NRSFM_DATA"):
-        raise UsageError("no data folder: pass --data DIR (the folder with the .mat files) "
-                         "or set NRSFM_DATA to the folder that holds mocap/")
+        raise UsageError("no data folder: pass --data DIR or set NRSFM_DATA (the folder "
+                         "that holds mocap/, or mocap/ itself)")
     rrd = rrd_path(args, f"{args.name}.rrd")
     seq = load_mocap(args.name, args.data)
     K = args.K if args.K is not None else seq.K
@@ -94,7 +94,9 @@ def add_mocap_command(sub):
                        epilog="--rrd without PATH writes out/NAME.rrd under the current "
                               "folder (or $NRSFM_OUT/NAME.rrd).")
     p.add_argument("name", help="drink, pickup, yoga, stretch, dance, face, walking, shark")
-    p.add_argument("--data", help="folder with the .mat files (default: $NRSFM_DATA/mocap)")
+    p.add_argument("--data", metavar="DIR",
+                   help="the folder that holds mocap/ with the .mat files, or mocap/ itself "
+                        "(default: $NRSFM_DATA, either form too)")
     p.add_argument("--K", type=positive_int, help="override the paper's K")
     p.add_argument("--given-rotations", action="store_true",
                    help="use ground-truth rotations (shape stage only)")
