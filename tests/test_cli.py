@@ -168,7 +168,7 @@ def _bad_inputs(tmp_path, seq, good):
         "empty": (["run", tmp_path / "empty.npz"], "is empty"),
         "corrupt": (["run", tmp_path / "corrupt.npz"], "corrupt"),
         "damaged": (["run", tmp_path / "damaged.npz"], "damaged.npz"),
-        "text": (["run", tmp_path / "text.npz"], "not an .npz"),
+        "text": (["run", tmp_path / "text.npz"], "not an .npz archive, it is a text file"),
         "npy": (["run", tmp_path / "w.npy"], ".npy"),
         "object": (["run", obj], "object array"),
         "no W": (["run", _write(tmp_path, "x.npz", X=np.zeros(3))], "no array 'W'"),
@@ -238,6 +238,7 @@ def test_failure_is_one_line(tmp_path, seq, good, case):
     before = sorted(p.name for p in tmp_path.iterdir())
     proc = nrsfm(*args, cwd=tmp_path)
     assert_one_line_failure(proc, fragment)
+    assert "allow_pickle" not in proc.stderr and "unsafe" not in proc.stderr
     # checked before the computation: no progress, no output, nothing new on disk
     assert proc.stdout == ""
     assert sorted(p.name for p in tmp_path.iterdir()) == before
