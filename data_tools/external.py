@@ -1,8 +1,9 @@
 """Loaders for public real sequences with per-frame 3D ground truth beyond the MoCap set.
 
 The files are not part of this project (see ``docs/validation_data.md`` for where each comes
-from and its terms). ``load_external(name, folder)`` reads ``<name>/<file>`` or ``<file>`` in ``folder``, which is
-the folder that holds ``external/`` or ``external/`` itself (as for the MoCap files). All of them hold 3D points in the frame of the camera that filmed them
+from and its terms). ``load_external(name, folder)`` reads ``<name>/<file>`` or ``<file>`` in
+``folder``, which is the folder that holds ``external/`` or ``external/`` itself (as for the
+MoCap files). All of them hold 3D points in the frame of the camera that filmed them
 (perspective images); the measurements returned here are the **orthographic** projections
 ``(X, Y)`` of that ground truth, centred per frame, as the benchmark does for face, walking
 and shark. The shipped image tracks are kept in ``extra["image_tracks"]`` (perspective,
