@@ -148,3 +148,14 @@ def test_external_data_folder_forms(monkeypatch, tmp_path):
         assert dt.load_external("back", given).W.shape == (8, 6)
     monkeypatch.setenv("NRSFM_DATA", str(tmp_path / "data"))
     assert dt.load_external("back").W.shape == (8, 6)
+
+
+def test_benchmark_data_folder_both_forms(monkeypatch, tmp_path):
+    from nrsfm.experiments.runner import resolve_data_dir
+
+    folder = _shark_folder(tmp_path / "data")
+    assert resolve_data_dir(folder.parent) == folder == resolve_data_dir(folder)
+    monkeypatch.setenv("NRSFM_DATA", str(folder.parent))
+    assert resolve_data_dir() == folder
+    with pytest.raises(FileNotFoundError, match="nowhere does not exist; pass the folder"):
+        resolve_data_dir(tmp_path / "nowhere")
