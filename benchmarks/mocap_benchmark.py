@@ -20,7 +20,6 @@ import time
 
 import data_tools as dt
 import nrsfm
-from nrsfm.paths import data_dir
 from nrsfm.published import published
 
 
@@ -39,7 +38,8 @@ def fmt(x, nd=4):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", help="folder holding mocap/ (default: $NRSFM_DATA)")
+    ap.add_argument("--data",
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+", default=list(dt.MOCAP_NAMES))
     ap.add_argument("--methods", nargs="+", default=["organic", "bmm"],
                     choices=sorted(nrsfm.METHODS))
@@ -49,7 +49,7 @@ def main(argv=None):
                     help="also run BMM with Dai's K under the Akhter metric")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    mocap = None if args.data is None else data_dir(args.data) / "mocap"
+    mocap = args.data
     paper = None if args.no_published else published()
 
     rows = []

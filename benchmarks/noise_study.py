@@ -82,7 +82,8 @@ def plot(results, sigmas, methods, path, name):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", help="folder holding mocap/ (default: $NRSFM_DATA)")
+    ap.add_argument("--data",
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequence", default="pickup")
     ap.add_argument("--sigmas", type=float, nargs="+",
                     default=[0.01, 0.05, 0.10, 0.15, 0.20, 0.25])
@@ -90,7 +91,7 @@ def main(argv=None):
     ap.add_argument("--methods", nargs="+", default=["organic", "bmm"])
     ap.add_argument("--plot", default="docs/figures/noise_study.png")
     args = ap.parse_args(argv)
-    seq = dt.load_mocap(args.sequence, None if args.data is None else f"{args.data}/mocap")
+    seq = dt.load_mocap(args.sequence, args.data)
     results = run(seq, args.sigmas, args.seeds, args.methods)
     print(f"{args.sequence} (F={seq.n_frames}, K={seq.K}), {args.seeds} seeds per sigma")
     print(table(results, args.sigmas, args.methods))

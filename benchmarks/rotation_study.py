@@ -115,7 +115,7 @@ def table(rows, strategies, key):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
-                    help="benchmark data directory (default $NRSFM_DATA)")
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+",
                     default=["pickup", "yoga", "stretch", "drink", "dance", "face",
                              "walking", "shark"])

@@ -86,7 +86,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("sequences", nargs="*", default=["drink", "pickup", "yoga", "stretch",
                                                      "dance", "face", "walking", "shark"])
-    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"))
+    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--variants", nargs="*", default=list(VARIANTS))
     a = ap.parse_args(argv)
     folder = os.path.join(a.data, "mocap")

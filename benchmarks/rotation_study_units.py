@@ -60,10 +60,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("sequences", nargs="*", default=["drink", "pickup", "yoga", "stretch",
                                                      "dance", "face", "walking", "shark"])
-    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"))
+    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     a = ap.parse_args(argv)
-    folder = os.path.join(a.data, "mocap")
-    run(a.sequences, folder if os.path.isdir(folder) else a.data)
+    run(a.sequences, a.data)
 
 
 if __name__ == "__main__":

@@ -73,13 +73,14 @@ def main(argv=None):
     import data_tools
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"))
+    ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+", default=["pickup", "stretch", "drink"])
     ap.add_argument("--paths", nargs="+", default=PATHS)
     ap.add_argument("--noise", nargs="+", type=float, default=[0.0, 0.02])
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
-    folder = os.path.join(a.data, "mocap") if a.data else None
+    folder = a.data
     spec = [(q, p, z) for q in a.sequences for p in a.paths for z in a.noise]
     seqs = data_tools.validation_set(spec, lambda n: data_tools.load_mocap(n, folder),
                                      seed=a.seed)

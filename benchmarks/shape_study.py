@@ -288,7 +288,7 @@ def section_dense():
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
-                    help="folder holding mocap/ (default: $NRSFM_DATA)")
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sections", nargs="+",
                     default=["synthetic", "gt", "noise", "time", "dense"],
                     choices=["synthetic", "gt", "noise", "time", "stability", "dense",
@@ -301,7 +301,7 @@ def main(argv=None):
                                        "admm_scale", "perturb"}
     if needs_data and not args.data:
         ap.error("no data folder: pass --data or set NRSFM_DATA")
-    mocap = os.path.join(args.data, "mocap") if args.data else None
+    mocap = args.data
     with threadpool_limits(limits=1):
         seqs = {n: dt.load_mocap(n, mocap) for n in AKHTER4} if needs_data else {}
         for sec in args.sections:

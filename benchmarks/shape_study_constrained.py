@@ -324,7 +324,7 @@ def section_dense():
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
-                    help="folder holding mocap/ (default: $NRSFM_DATA)")
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     secs = ["gt", "synthetic", "deficient", "reproject", "stability", "noise", "variants",
             "dense", "flat", "pipeline_noise", "noise_kkt", "drink_kkt"]
     ap.add_argument("--sections", nargs="+", default=["gt", "synthetic", "deficient"],
@@ -334,7 +334,7 @@ def main(argv=None):
     needs = set(args.sections) - {"synthetic", "deficient", "dense"}
     if needs and not args.data:
         ap.error("no data folder: pass --data or set NRSFM_DATA")
-    mocap = os.path.join(args.data, "mocap") if args.data else None
+    mocap = args.data
     with threadpool_limits(limits=1):
         seqs = {n: dt.load_mocap(n, mocap) for n in AKHTER4} if needs else {}
         for sec in args.sections:

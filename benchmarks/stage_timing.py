@@ -16,17 +16,17 @@ import numpy as np
 
 import data_tools as dt
 import nrsfm
-from nrsfm.paths import data_dir
 from nrsfm.published import published_value
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", help="folder holding mocap/ (default: $NRSFM_DATA)")
+    ap.add_argument("--data",
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+", default=["pickup", "drink"])
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
-    mocap = None if args.data is None else data_dir(args.data) / "mocap"
+    mocap = args.data
     for name in args.sequences:
         seq = dt.load_mocap(name, mocap)
         stages, totals = {}, []

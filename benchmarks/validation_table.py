@@ -82,7 +82,7 @@ def loader(data, external):
     def load(name):
         if name in dt.EXTERNAL:
             return dt.load_external(name, external)
-        return dt.load_mocap(name, os.path.join(data, "mocap") if data else None)
+        return dt.load_mocap(name, data)
     return load
 
 
@@ -109,7 +109,7 @@ def print_table(rows, names, results, times):
 def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("NRSFM_DATA"),
-                    help="folder holding mocap/ (default $NRSFM_DATA)")
+                    help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--external-data", default=os.environ.get("NRSFM_EXTERNAL_DATA"),
                     help="folder of the external sequences (default $NRSFM_EXTERNAL_DATA)")
     ap.add_argument("--sequences", nargs="+", default=["pickup", "stretch", "drink"],

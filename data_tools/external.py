@@ -1,8 +1,9 @@
 """Loaders for public real sequences with per-frame 3D ground truth beyond the MoCap set.
 
 The files are not part of this project (see ``docs/validation_data.md`` for where each comes
-from and its terms). ``load_external(name, folder)`` reads ``folder/<name>/<file>`` or
-``folder/<file>``. All of them hold 3D points in the frame of the camera that filmed them
+from and its terms). ``load_external(name, folder)`` reads ``<name>/<file>`` or ``<file>`` in
+``folder``, which is the folder that holds ``external/`` or ``external/`` itself (as for the
+MoCap files). All of them hold 3D points in the frame of the camera that filmed them
 (perspective images); the measurements returned here are the **orthographic** projections
 ``(X, Y)`` of that ground truth, centred per frame, as the benchmark does for face, walking
 and shark. The shipped image tracks are kept in ``extra["image_tracks"]`` (perspective,
@@ -19,12 +20,10 @@ Formats:
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import scipy.io
 
+from nrsfm.paths import find_data_file
 from nrsfm.sequence import Sequence
 
 #: name -> (file, format, suggested K). K is a suggestion for the benchmark (3K must not
@@ -38,23 +37,35 @@ EXTERNAL = {
 
 
 def external_file(name, folder=None):
-    """Path of sequence ``name`` under ``folder`` (``folder/name/file`` or ``folder/file``).
+    """Path of sequence ``name``'s file under ``folder``.
 
-    ``folder`` defaults to ``$NRSFM_EXTERNAL_DATA``.
+    Parameters
+    ----------
+    name : str
+        A key of :data:`EXTERNAL`.
+    folder : str or Path, optional
+        The folder that holds ``external/``, or ``external/`` itself (both accepted, as
+        for the MoCap files); in it, ``<name>/<file>`` or ``<file>``. Default
+        ``$NRSFM_EXTERNAL_DATA``, else ``$NRSFM_DATA``.
+
+    Returns
+    -------
+    path : Path
+
+    Raises
+    ------
+    ValueError
+        Unknown name.
+    FileNotFoundError
+        No folder given, or the file is missing (the message names the folders searched).
     """
-    folder = folder if folder is not None else os.environ.get("NRSFM_EXTERNAL_DATA")
     if name not in EXTERNAL:
         raise ValueError(f"unknown external sequence {name!r}; expected one of "
                          f"{sorted(EXTERNAL)}")
-    if folder is None:
-        raise FileNotFoundError(f"no folder given for external sequence {name!r} "
-                                f"(pass --external-data or set NRSFM_EXTERNAL_DATA)")
-    folder = Path(folder).expanduser()
     file = EXTERNAL[name][0]
-    for path in (folder / name / file, folder / file):
-        if path.is_file():
-            return path
-    raise FileNotFoundError(f"{file} for {name!r} not found in {folder} or {folder / name}")
+    return find_data_file((f"{name}/{file}", file), "external", folder,
+                          env=("NRSFM_EXTERNAL_DATA", "NRSFM_DATA"),
+                          what=f"{file} for {name!r}")
 
 
 def load_external(name, folder=None, K=None):
@@ -66,7 +77,8 @@ def load_external(name, folder=None, K=None):
         A key of :data:`EXTERNAL`.
     folder : str or Path, optional
         Folder holding ``<name>/<file>`` or ``<file>``; defaults to
-        ``$NRSFM_EXTERNAL_DATA``.
+        ``$NRSFM_EXTERNAL_DATA``, else ``$NRSFM_DATA``; it may also be the folder that holds
+        ``external/`` (see :func:`external_file`).
     K : int, optional
         Overrides the suggested K.
 

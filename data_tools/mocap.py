@@ -1,8 +1,9 @@
 """Loader for the 8-sequence MoCap NRSfM benchmark (Akhter et al. and Torresani et al. files).
 
-The files are not part of this project: they are read from ``data_dir``, which defaults to
-``$NRSFM_DATA/mocap`` (a relative ``NRSFM_DATA`` resolves against the folder the user started
-in, see :mod:`nrsfm.paths`).
+The files are not part of this project: they are read from ``data_dir`` (default
+``$NRSFM_DATA``), the folder that holds ``mocap/`` or ``mocap/`` itself, both accepted (a
+relative path resolves against the folder the user started in; see
+:func:`nrsfm.paths.find_data_file`).
 """
 
 from __future__ import annotations
@@ -12,8 +13,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
-from nrsfm.paths import data_dir as _data_root
-from nrsfm.paths import user_path
+from nrsfm import paths
 from nrsfm.sequence import Sequence
 
 #: The shape-basis sizes K the organic-priors paper uses (its Table 1).
@@ -40,14 +40,24 @@ DANCE_CAMERA = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
 def mocap_dir(data_dir=None) -> Path:
-    """Folder holding the ``.mat`` files: ``data_dir`` or ``$NRSFM_DATA/mocap``.
+    """Folder holding the ``.mat`` files (:func:`nrsfm.paths.mocap_dir`).
 
-    Relative paths resolve against :func:`nrsfm.paths.user_folder`. Raises
-    ``FileNotFoundError`` naming ``NRSFM_DATA`` when neither is given.
+    Parameters
+    ----------
+    data_dir : str or Path, optional
+        The folder that holds ``mocap/``, or ``mocap/`` itself; default ``$NRSFM_DATA``.
+
+    Returns
+    -------
+    folder : Path
+        ``data_dir/mocap`` when that folder exists, else ``data_dir``.
+
+    Raises
+    ------
+    FileNotFoundError
+        Neither ``data_dir`` nor ``$NRSFM_DATA`` is given.
     """
-    if data_dir is not None:
-        return user_path(data_dir)
-    return _data_root() / "mocap"
+    return paths.mocap_dir(data_dir)
 
 
 def _interleaved_to_frames(A, rows):
@@ -70,7 +80,8 @@ def load_mocap(name: str, data_dir=None) -> Sequence:
     name : str
         One of ``drink, pickup, yoga, stretch, dance, face, walking, shark``.
     data_dir : str or Path, optional
-        Folder holding ``<name>.mat``. Defaults to ``$NRSFM_DATA/mocap``.
+        The folder that holds ``mocap/<name>.mat``, or ``mocap/`` itself (both accepted);
+        default ``$NRSFM_DATA`` (either form too).
 
     Returns
     -------
@@ -85,15 +96,13 @@ def load_mocap(name: str, data_dir=None) -> Sequence:
     ValueError
         Unknown name.
     FileNotFoundError
-        The file is missing; the message says where it looked.
+        No folder given, or the file is missing; the message names the folders searched
+        and the folder to give.
     """
     if name not in MOCAP_K:
         raise ValueError(f"unknown MoCap sequence {name!r}; expected one of {MOCAP_NAMES}")
-    folder = mocap_dir(data_dir)
-    path = folder / f"{name}.mat"
-    if not path.is_file():
-        where = f"{folder}" + ("" if folder.is_dir() else " (that folder does not exist)")
-        raise FileNotFoundError(f"MoCap file {path.name} not found in {where}")
+    path = paths.find_data_file(f"{name}.mat", "mocap", data_dir,
+                                what=f"MoCap file {name}.mat")
     try:
         mat = scipy.io.loadmat(str(path))
     except Exception as exc:  # MatReadError, ValueError, OSError, zlib errors, ...
@@ -153,5 +162,15 @@ def _load_torresani(name, mat):
 
 
 def load_all(data_dir=None):
-    """All 8 sequences as a dict name -> Sequence, in the paper's order."""
+    """All 8 sequences as a dict name -> Sequence, in the paper's order.
+
+    Parameters
+    ----------
+    data_dir : str or Path, optional
+        As for :func:`load_mocap`.
+
+    Returns
+    -------
+    dict
+    """
     return {n: load_mocap(n, data_dir) for n in MOCAP_NAMES}

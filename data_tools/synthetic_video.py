@@ -125,8 +125,9 @@ class SyntheticVideo:
 
     Attributes
     ----------
-    frames : (F, H, W, 3) uint8 ndarray
-        BGR frames.
+    frames : (F, H, W, 3) uint8 ndarray or None
+        BGR frames; None for a ground truth read by
+        :func:`data_tools.video_truth.load_ground_truth`.
     surface : str
     uv : (V, 2) ndarray
         Surface (texture) coordinates of the mesh vertices.
@@ -162,7 +163,8 @@ class SyntheticVideo:
 
     @property
     def n_frames(self):
-        return self.frames.shape[0]
+        """Number of frames (also without ``frames``)."""
+        return self.vertices.shape[0]
 
     def project(self, X_world):
         """Pixel positions (F, 2, P) of world points (F, 3, P)."""

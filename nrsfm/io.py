@@ -1,20 +1,27 @@
 """Atomic output files (the one home of atomic writes): write beside the target, then
-rename over it.
+rename over it; and :func:`load_npz`, the one reader of input ``.npz`` files.
 
 A write that fails half-way (disk full, file-size limit, an exception while the content is
-produced) leaves an existing output untouched and no partial file behind.
+produced) leaves an existing output untouched and no partial file behind. A file that
+cannot be read as an ``.npz`` of arrays raises a ``ValueError`` that names the file, what it
+looks like and what was expected; nothing is ever unpickled, and no message suggests it.
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+import zipfile
+import zlib
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_output", "check_output_path", "save_npz", "write_text"]
+__all__ = ["atomic_output", "check_output_path", "load_npz", "save_npz", "write_text"]
+
+#: What :func:`load_npz` reads, for its messages.
+NPZ_EXPECTED = "an .npz archive of numeric arrays, as written by numpy.savez"
 
 
 def _umask():
@@ -148,3 +155,97 @@ def write_text(path, text):
     with atomic_output(path) as tmp:
         tmp.write_text(text)
     return path
+
+
+def _looks_like(head):
+    """What the first bytes of a file that is not a zip archive look like."""
+    if head.startswith(b"\x93NUMPY"):
+        return "a .npy file (one array)"
+    if head[:1] == b"\x80" or head.startswith((b"(dp", b"(lp", b"}q")):
+        return "a Python pickle (never loaded)"
+    text = None
+    for cut in range(4):         # the 64 bytes may end inside a multi-byte character
+        try:
+            text = head[:len(head) - cut].decode("utf-8")
+            break
+        except UnicodeDecodeError:
+            continue
+    if text and all(c.isprintable() or c in "\t\r\n" for c in text):
+        return f"a text file (it starts with {' '.join(text.split())[:40]!r})"
+    return "a binary file of an unknown kind"
+
+
+def _reason(exc):
+    """A one-line reason from a reader's exception, without numpy's advice to unpickle."""
+    text = " ".join(str(exc).split())
+    if not text or "pickle" in text.lower():
+        return type(exc).__name__
+    return text[:200]
+
+
+def _open_npz(path, what, expected):
+    """``numpy.load`` of a checked file, with plain messages for every unreadable one."""
+    path = Path(path).expanduser()
+    if path.is_dir():
+        raise ValueError(f"{what} {path} is a folder; expected {expected}")
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} file {path} not found")
+    with open(path, "rb") as f:
+        head = f.read(64)
+    if not head:
+        raise ValueError(f"{what} {path} is empty; expected {expected}")
+    if not head.startswith((b"PK\x03\x04", b"PK\x05\x06")):
+        raise ValueError(f"cannot read {what} {path}: not an .npz archive, it is "
+                         f"{_looks_like(head)}; expected {expected}")
+    try:
+        return path, np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        raise ValueError(f"cannot read {what} {path}: corrupt .npz archive "
+                         f"({_reason(exc)}); expected {expected}") from exc
+
+
+def load_npz(path, what="input", expected=NPZ_EXPECTED):
+    """The arrays of an ``.npz`` file, read without unpickling anything.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    what : str
+        What the file is, for messages (``"input"``, ``"--ground-truth"``).
+    expected : str
+        What the file should be, for messages.
+
+    Returns
+    -------
+    arrays : dict of str to ndarray
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        A folder, an empty file, a file that is not a zip archive (a text file, a ``.npy``,
+        a pickle, ...), a corrupt archive, an object array or a member that is not an
+        array: one line naming the file, what it holds and ``expected``.
+    """
+    path, loaded = _open_npz(path, what, expected)
+    data = {}
+    with loaded as z:
+        for key in z.files:
+            try:
+                value = z[key]
+            except ValueError as exc:
+                if "pickle" in str(exc) or "Object arrays" in str(exc):
+                    raise ValueError(f"{what} {path}: array {key!r} is an object array "
+                                     "(arrays of Python objects are not read); save "
+                                     "numeric arrays only") from exc
+                raise ValueError(f"cannot read array {key!r} of {what} {path}: "
+                                 f"{_reason(exc)}") from exc
+            except (EOFError, OSError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+                raise ValueError(f"cannot read array {key!r} of {what} {path}: corrupt "
+                                 f".npz archive ({_reason(exc)})") from exc
+            if not isinstance(value, np.ndarray):
+                raise ValueError(f"{what} {path}: member {key!r} is not a NumPy array; "
+                                 f"expected {expected}")
+            data[key] = value
+    return data

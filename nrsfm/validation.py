@@ -33,7 +33,8 @@ def check_measurements(W, name="W", allow_missing=False):
     ------
     ValueError
         Wrong number of dimensions, an odd number of rows, fewer than 2 frames or
-        3 points, or non-finite entries.
+        3 points, or infinite entries (and NaN entries unless ``allow_missing``); the
+        message counts the NaN and the infinite entries apart.
     """
     if allow_missing and isinstance(W, np.ma.MaskedArray):
         A = np.ma.filled(W.astype(float), np.nan)
@@ -52,11 +53,22 @@ def check_measurements(W, name="W", allow_missing=False):
         raise ValueError(f"{name} needs at least 2 frames; got F={F} (shape {A.shape})")
     if P < 3:
         raise ValueError(f"{name} needs at least 3 points; got P={P} (shape {A.shape})")
-    if allow_missing:
-        _finite(np.nan_to_num(A, nan=0.0, posinf=np.inf, neginf=-np.inf), name)
-    else:
-        _finite(A, name)
+    _measurement_values(A, name, allow_missing)
     return A
+
+
+def _measurement_values(A, name, allow_missing):
+    """Infinite entries are refused; NaN entries too unless they mark missing data. The
+    message counts each kind, so an infinite entry is never called NaN (or the reverse)."""
+    n_inf = int(np.count_nonzero(np.isinf(A)))
+    n_nan = 0 if allow_missing else int(np.count_nonzero(np.isnan(A)))
+    if not (n_inf or n_nan):
+        return
+    parts = [f"{n} {kind} entr{'y' if n == 1 else 'ies'}"
+             for n, kind in ((n_nan, "NaN"), (n_inf, "infinite")) if n]
+    note = (" (NaN marks a missing observation; an infinite value is an error)"
+            if allow_missing else "")
+    raise ValueError(f"{name} contains {' and '.join(parts)}{note}")
 
 
 def check_integer(value, name, minimum=None):

@@ -168,7 +168,7 @@ def _bad_inputs(tmp_path, seq, good):
         "empty": (["run", tmp_path / "empty.npz"], "is empty"),
         "corrupt": (["run", tmp_path / "corrupt.npz"], "corrupt"),
         "damaged": (["run", tmp_path / "damaged.npz"], "damaged.npz"),
-        "text": (["run", tmp_path / "text.npz"], "not an .npz"),
+        "text": (["run", tmp_path / "text.npz"], "not an .npz archive, it is a text file"),
         "npy": (["run", tmp_path / "w.npy"], ".npy"),
         "object": (["run", obj], "object array"),
         "no W": (["run", _write(tmp_path, "x.npz", X=np.zeros(3))], "no array 'W'"),
@@ -238,6 +238,7 @@ def test_failure_is_one_line(tmp_path, seq, good, case):
     before = sorted(p.name for p in tmp_path.iterdir())
     proc = nrsfm(*args, cwd=tmp_path)
     assert_one_line_failure(proc, fragment)
+    assert "allow_pickle" not in proc.stderr and "unsafe" not in proc.stderr
     # checked before the computation: no progress, no output, nothing new on disk
     assert proc.stdout == ""
     assert sorted(p.name for p in tmp_path.iterdir()) == before
@@ -262,6 +263,29 @@ def test_mocap_without_data_folder(tmp_path):
                           env=dict(env, PYTHONPATH=str(ROOT), PWD=str(tmp_path)),
                           capture_output=True, text=True, timeout=120)
     assert_one_line_failure(proc, "NRSFM_DATA", "--data", code=2)
+
+
+@pytest.mark.parametrize("form", ["parent", "mocap"])
+def test_mocap_data_folder_both_forms(tmp_path, form):
+    """``--data`` and ``NRSFM_DATA`` take the folder that holds mocap/ or mocap/ itself."""
+    folder = tmp_path / "data" / "mocap"
+    folder.mkdir(parents=True)
+    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.random.default_rng(0)
+                                            .standard_normal((30, 12))})
+    given = folder.parent if form == "parent" else folder
+    for args, env in (((("--data", given)), None), ((), {"NRSFM_DATA": str(given)})):
+        proc = nrsfm("mocap", "shark", *args, "--K", "1", "--quiet", cwd=tmp_path,
+                     env_extra=env)
+        assert proc.returncode == 0, proc.stderr
+        assert "errors against ground truth: e3d" in proc.stdout
+
+
+def test_mocap_missing_file_names_the_folder_to_use(tmp_path):
+    (tmp_path / "data" / "mocap").mkdir(parents=True)
+    scipy.io.savemat(tmp_path / "data" / "mocap" / "pickup.mat", {"W": np.zeros((2, 2))})
+    proc = nrsfm("mocap", "pickup", "--data", tmp_path, cwd=tmp_path)
+    assert_one_line_failure(proc, f"looked in {tmp_path / 'mocap'} (no such folder) and "
+                                  f"{tmp_path};", f"{tmp_path / 'data'} holds it", code=1)
 
 
 def test_given_rotations_without_ground_truth_on_mocap(tmp_path):

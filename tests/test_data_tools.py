@@ -58,7 +58,7 @@ def test_torresani_layout_is_stacked_by_coordinate(mocap_dir):
 def test_missing_file_says_where_it_looked(tmp_path):
     with pytest.raises(FileNotFoundError, match=str(tmp_path)):
         dt.load_mocap("drink", tmp_path)
-    with pytest.raises(FileNotFoundError, match="does not exist"):
+    with pytest.raises(FileNotFoundError, match="no such folder"):
         dt.load_mocap("drink", tmp_path / "nowhere")
 
 

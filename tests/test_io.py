@@ -1,11 +1,13 @@
 """nrsfm.io: exact output names, atomic replacement, checks before the computation."""
 
 import os
+import pickle
+import zipfile
 
 import numpy as np
 import pytest
 
-from nrsfm.io import atomic_output, check_output_path, save_npz, write_text
+from nrsfm.io import atomic_output, check_output_path, load_npz, save_npz, write_text
 
 
 def test_save_npz_writes_exactly_the_name_given(tmp_path):
@@ -59,3 +61,49 @@ def test_write_text_is_atomic(tmp_path):
         write_text(target, None)                 # fails while writing: old file kept
     assert target.read_text() == "{}"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
+
+
+def test_load_npz_reads_the_arrays(tmp_path):
+    path = save_npz(tmp_path / "in.npz", W=np.arange(6.0).reshape(2, 3), K=np.int64(2))
+    data = load_npz(path)
+    assert sorted(data) == ["K", "W"] and data["K"] == 2
+    np.testing.assert_array_equal(data["W"], np.arange(6.0).reshape(2, 3))
+
+
+def _unreadable(tmp_path):
+    """name -> (file, fragment of the message)."""
+    good = save_npz(tmp_path / "good.npz", compressed=False, W=np.zeros((40, 30)))
+    files = {"text": b"W = 1, 2, 3\n", "empty": b"", "pickle": pickle.dumps({"W": [1]}),
+             "binary": bytes(range(255, 0, -1)), "truncated": good.read_bytes()[:300]}
+    for name, raw in files.items():
+        (tmp_path / f"{name}.npz").write_bytes(raw)
+    np.save(tmp_path / "one.npy", np.zeros(3))
+    np.savez(tmp_path / "object.npz", W=np.array([1, "a", None], dtype=object))
+    with zipfile.ZipFile(tmp_path / "zip.npz", "w") as z:
+        z.writestr("W.txt", "1 2 3")
+    out = {"text": "it is a text file (it starts with 'W = 1, 2, 3')",
+           "empty": "is empty", "pickle": "it is a Python pickle (never loaded)",
+           "binary": "a binary file of an unknown kind", "truncated": "corrupt .npz archive",
+           "one.npy": "it is a .npy file (one array)", "object": "is an object array",
+           "zip": "member 'W.txt' is not a NumPy array"}
+    return {k: (tmp_path / (k if k.endswith(".npy") else f"{k}.npz"), v)
+            for k, v in out.items()}
+
+
+@pytest.mark.parametrize("case", ["text", "empty", "pickle", "binary", "truncated",
+                                  "one.npy", "object", "zip"])
+def test_load_npz_unreadable_files_plain_messages(tmp_path, case):
+    """A plain one-line ValueError naming the file; never numpy's advice to unpickle."""
+    path, fragment = _unreadable(tmp_path)[case]
+    with pytest.raises(ValueError) as info:
+        load_npz(path, "input", expected="an .npz with an array W")
+    msg = str(info.value)
+    assert fragment in msg and str(path) in msg and "\n" not in msg
+    assert "allow_pickle" not in msg and "pickle.load" not in msg and "unsafe" not in msg
+
+
+def test_load_npz_missing_file_and_folder(tmp_path):
+    with pytest.raises(FileNotFoundError, match="not found"):
+        load_npz(tmp_path / "nope.npz")
+    with pytest.raises(ValueError, match="is a folder; expected an .npz archive"):
+        load_npz(tmp_path)

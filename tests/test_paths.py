@@ -89,3 +89,73 @@ def test_relative_nrsfm_data_resolves_against_the_users_folder(monkeypatch, tmp_
     seq = dt.load_mocap("shark")
     assert seq.shapes.shape == (F, 3, P)
     assert dt.mocap_dir() == data
+
+
+def _shark_folder(root):
+    """``root/mocap/shark.mat``, a tiny Torresani-layout file; returns the mocap folder."""
+    folder = root / "mocap"
+    folder.mkdir(parents=True)
+    P3 = np.random.default_rng(2).standard_normal((3 * 4, 5))
+    scipy.io.savemat(folder / "shark.mat", {"P3_gt": P3})
+    return folder
+
+
+@pytest.mark.parametrize("form", ["parent", "mocap"])
+def test_data_folder_is_the_parent_of_mocap_or_mocap_itself(monkeypatch, tmp_path, form):
+    """``data_dir=`` and ``NRSFM_DATA`` take the same folder, in both forms."""
+    folder = _shark_folder(tmp_path / "data")
+    given = folder.parent if form == "parent" else folder
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    assert dt.load_mocap("shark", given).shapes.shape == (4, 3, 5)
+    assert dt.mocap_dir(given) == folder and paths.mocap_dir(given) == folder
+    monkeypatch.setenv("NRSFM_DATA", str(given))
+    assert dt.load_mocap("shark").shapes.shape == (4, 3, 5)
+    assert dt.mocap_dir() == folder
+
+
+def test_missing_mocap_file_names_the_folders_searched(monkeypatch, tmp_path):
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    folder = _shark_folder(tmp_path / "data")
+    with pytest.raises(FileNotFoundError) as info:
+        dt.load_mocap("drink", folder.parent)
+    msg = str(info.value)
+    assert f"looked in {folder} and {folder.parent};" in msg
+    assert "the folder that holds mocap/ (or mocap/ itself)" in msg and "NRSFM_DATA" in msg
+    with pytest.raises(FileNotFoundError, match=f"looked in {folder};"):
+        dt.load_mocap("drink", folder)          # mocap/ itself: not mocap/mocap
+    with pytest.raises(FileNotFoundError, match="no such folder.*no such folder"):
+        dt.load_mocap("drink", tmp_path / "nowhere")
+
+
+def test_missing_mocap_file_points_at_the_folder_one_level_down(tmp_path):
+    """Given the grandparent of mocap/ (``--data ../shared``), name the folder to use."""
+    folder = _shark_folder(tmp_path / "data")
+    with pytest.raises(FileNotFoundError) as info:
+        dt.load_mocap("shark", tmp_path)
+    assert str(info.value).endswith(f"{tmp_path / 'data'} holds it: use that folder")
+
+
+def test_external_data_folder_forms(monkeypatch, tmp_path):
+    """The external sequences: the folder that holds external/ or external/ itself, and
+    ``$NRSFM_DATA`` when ``$NRSFM_EXTERNAL_DATA`` is not set."""
+    ext = tmp_path / "data" / "external" / "back"
+    ext.mkdir(parents=True)
+    T = np.random.default_rng(3).standard_normal((3, 6, 4))
+    scipy.io.savemat(ext / "back_L_3D.mat", {"track3D": T})
+    monkeypatch.delenv("NRSFM_EXTERNAL_DATA", raising=False)
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    for given in (tmp_path / "data", tmp_path / "data" / "external"):
+        assert dt.load_external("back", given).W.shape == (8, 6)
+    monkeypatch.setenv("NRSFM_DATA", str(tmp_path / "data"))
+    assert dt.load_external("back").W.shape == (8, 6)
+
+
+def test_benchmark_data_folder_both_forms(monkeypatch, tmp_path):
+    from nrsfm.experiments.runner import resolve_data_dir
+
+    folder = _shark_folder(tmp_path / "data")
+    assert resolve_data_dir(folder.parent) == folder == resolve_data_dir(folder)
+    monkeypatch.setenv("NRSFM_DATA", str(folder.parent))
+    assert resolve_data_dir() == folder
+    with pytest.raises(FileNotFoundError, match="nowhere does not exist; pass the folder"):
+        resolve_data_dir(tmp_path / "nowhere")

@@ -192,7 +192,8 @@ def test_load_external_tracks3d_format(tmp_path, monkeypatch):
 
 def test_load_external_errors(tmp_path, monkeypatch):
     monkeypatch.delenv("NRSFM_EXTERNAL_DATA", raising=False)
-    with pytest.raises(FileNotFoundError, match="NRSFM_EXTERNAL_DATA"):
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    with pytest.raises(FileNotFoundError, match="NRSFM_EXTERNAL_DATA or NRSFM_DATA"):
         load_external("back")
     with pytest.raises(ValueError, match="unknown external sequence"):
         load_external("nope", tmp_path)

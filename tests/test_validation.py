@@ -131,3 +131,30 @@ def test_tiny_variation_on_a_large_offset_is_not_constant(seq):
     res = nrsfm.reconstruct(seq.W * 1e-9 + 1e6, 2, method="pseudo_inverse",
                             rotations=seq.rotations)
     assert np.all(np.isfinite(res.shapes)) and res.scale > 0
+
+
+@pytest.mark.parametrize("value", [np.inf, -np.inf])
+def test_infinite_entry_is_called_infinite(seq, value):
+    """With missing data allowed (the default), NaN is a missing observation and an
+    infinite entry is an error whose message says infinite, not "NaN or infinite"."""
+    W = seq.W.copy()
+    W[3, 4] = value
+    W[5, 6] = np.nan                                # missing: not counted as an error
+    with pytest.raises(ValueError) as info:
+        nrsfm.reconstruct(W, 2)
+    msg = str(info.value)
+    assert msg.startswith("W contains 1 infinite entry (NaN marks a missing observation")
+    assert "NaN or" not in msg
+
+
+def test_non_finite_counts_each_kind_when_missing_is_refused():
+    from nrsfm.validation import check_measurements
+
+    W = np.ones((6, 5))
+    W[0, 0], W[1, 1], W[2, 2] = np.nan, np.nan, np.inf
+    with pytest.raises(ValueError, match=r"^W contains 2 NaN entries and 1 infinite entry$"):
+        check_measurements(W)
+    W[2, 2] = 1.0
+    assert np.isnan(check_measurements(W, allow_missing=True)).sum() == 2
+    with pytest.raises(ValueError, match=r"^W contains 2 NaN entries$"):
+        check_measurements(W)

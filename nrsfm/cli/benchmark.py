@@ -44,8 +44,9 @@ def add_benchmark_command(subparsers):
     p = subparsers.add_parser(
         "benchmark", help="regenerate the paper's experiments (tables, plots) into a folder",
         description=f"{_DESCRIPTION} Experiments: {listed}")
-    p.add_argument("--data", help="folder with the MoCap .mat files (or its parent holding "
-                                  "mocap/); default $NRSFM_DATA/mocap")
+    p.add_argument("--data", metavar="DIR",
+                   help="the folder that holds mocap/ with the MoCap .mat files, or mocap/ "
+                        "itself (default: $NRSFM_DATA, either form too)")
     p.add_argument("--out", required=True, help="output folder (tables, plots, cache/)")
     p.add_argument("--only", nargs="+", choices=list(EXPERIMENTS), metavar="EXPERIMENT",
                    help="run only these experiments: " + ", ".join(EXPERIMENTS))

@@ -3,6 +3,7 @@ print its errors against the ground truth; the options every reconstruction comm
 
 from __future__ import annotations
 
+import argparse
 import os
 
 from ..validation import check_K
@@ -11,20 +12,26 @@ from ..settings import shape_solvers
 from .common import (UsageError, add_rrd_option, positive_int, print_report, rrd_path, seed,
                      write_recording)
 
-__all__ = ["add_common_options", "save_rrd", "add_demo_command", "add_mocap_command"]
+__all__ = ["add_common_options", "add_shape_solver_option", "save_rrd", "add_demo_command",
+           "add_mocap_command"]
 
 
 def add_common_options(p, rrd_name="NAME.rrd"):
     """``--method``, ``--shape-solver``, ``--seed``, ``--rrd [PATH]``, ``--quiet``."""
     p.add_argument("--method", choices=sorted(METHODS), default="organic",
                    help="pipeline to run (default: organic)")
+    add_shape_solver_option(p)
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    add_rrd_option(p, rrd_name)
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+
+
+def add_shape_solver_option(p):
+    """``--shape-solver`` (every command that reconstructs)."""
     p.add_argument("--shape-solver", choices=shape_solvers(), default="bilinear",
                    help="shape-stage solver (default: bilinear; admm: the paper's "
                         "continuation ADMM; closed_form: exact rank-K, no prior; "
                         "constrained: W fitted to within its noise)")
-    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
-    add_rrd_option(p, rrd_name)
-    p.add_argument("--quiet", action="store_true", help="no progress messages")
 
 
 def save_rrd(result, path, seq=None):
@@ -44,7 +51,15 @@ def _reconstruct(seq, K, args, rotations=None):
 
 
 def cmd_demo(args):
-    """``nrsfm demo``: the built-in synthetic sequence."""
+    """``nrsfm demo``: the built-in synthetic sequence; ``--video``: the synthetic video."""
+    if args.video:
+        from .video import cmd_demo_video
+
+        return cmd_demo_video(args)
+    given = [f for f, v in (("--frames", args.frames), ("--size", args.size),
+                            ("--surface", args.surface)) if v is not None]
+    if given:
+        raise UsageError(f"{', '.join(given)}: only with --video")
     from data_tools import default_sequence
 
     rrd = rrd_path(args, "demo.rrd")
@@ -57,12 +72,38 @@ def cmd_demo(args):
     return 0
 
 
+def image_size(text):
+    """argparse type: ``HxW`` in pixels, each at least 32 (``--size 240x320``)."""
+    parts = text.lower().split("x")
+    try:
+        H, W = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected HEIGHTxWIDTH, e.g. 240x320; got {text!r}")
+    if H < 32 or W < 32:
+        raise argparse.ArgumentTypeError(f"each side must be at least 32 pixels; got {text}")
+    return H, W
+
+
 def add_demo_command(sub):
-    p = sub.add_parser("demo", help="reconstruct the built-in synthetic sequence and print "
-                                    "its errors against ground truth",
-                       epilog="--rrd without PATH writes out/demo.rrd under the current "
-                              "folder (or $NRSFM_OUT/demo.rrd).")
+    p = sub.add_parser("demo", help="reconstruct the built-in synthetic sequence (or, with "
+                                    "--video, a synthetic video) and print its errors "
+                                    "against ground truth",
+                       epilog="--rrd without PATH writes out/demo.rrd (--video: "
+                              "out/demo_video.rrd) under the current folder (or "
+                              "$NRSFM_OUT). --video writes out/demo_video/frames/*.png and "
+                              "out/demo_video/ground_truth.npz, then runs nrsfm video on "
+                              "them with --ground-truth (--seed also seeds the video).")
     add_common_options(p, "demo.rrd")
+    p.add_argument("--video", action="store_true",
+                   help="render the synthetic video with ground truth "
+                        "(data_tools.make_video), write it, run nrsfm video on it and "
+                        "print e3d")
+    p.add_argument("--frames", type=positive_int, default=None, metavar="N",
+                   help="--video: number of frames (default: 40)")
+    p.add_argument("--size", type=image_size, default=None, metavar="HxW",
+                   help="--video: image size in pixels (default: 240x320)")
+    p.add_argument("--surface", choices=("sheet", "face"), default=None,
+                   help="--video: sheet (a waving flag, default) or face")
     p.set_defaults(func=cmd_demo)
 
 
@@ -74,8 +115,8 @@ def cmd_mocap(args):
         raise UsageError(f"unknown MoCap sequence {args.name!r}; expected one of "
                          f"{', '.join(MOCAP_NAMES)}")
     if args.data is None and not os.environ.get("NRSFM_DATA"):
-        raise UsageError("no data folder: pass --data DIR (the folder with the .mat files) "
-                         "or set NRSFM_DATA to the folder that holds mocap/")
+        raise UsageError("no data folder: pass --data DIR or set NRSFM_DATA (the folder "
+                         "that holds mocap/, or mocap/ itself)")
     rrd = rrd_path(args, f"{args.name}.rrd")
     seq = load_mocap(args.name, args.data)
     K = args.K if args.K is not None else seq.K
@@ -94,7 +135,9 @@ def add_mocap_command(sub):
                        epilog="--rrd without PATH writes out/NAME.rrd under the current "
                               "folder (or $NRSFM_OUT/NAME.rrd).")
     p.add_argument("name", help="drink, pickup, yoga, stretch, dance, face, walking, shark")
-    p.add_argument("--data", help="folder with the .mat files (default: $NRSFM_DATA/mocap)")
+    p.add_argument("--data", metavar="DIR",
+                   help="the folder that holds mocap/ with the .mat files, or mocap/ itself "
+                        "(default: $NRSFM_DATA, either form too)")
     p.add_argument("--K", type=positive_int, help="override the paper's K")
     p.add_argument("--given-rotations", action="store_true",
                    help="use ground-truth rotations (shape stage only)")

@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import warnings
-import zipfile
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
 from ..validation import check_K, check_measurements, check_rotations, check_shapes
-from ..io import save_npz
+from ..io import load_npz, save_npz
 from ..pipeline import reconstruct
 from ..sequence import Sequence
 from .common import UsageError, one_line, output_path, positive_int, print_report, rrd_path
@@ -23,38 +21,15 @@ __all__ = ["add_run_command", "cmd_run", "INPUT_KEYS"]
 INPUT_KEYS = ("W", "K", "shapes", "rotations", "edges")
 
 
+#: What ``nrsfm run`` reads, for the messages about an unreadable input.
+INPUT_EXPECTED = ("an .npz with an array named W, e.g. written by "
+                  "numpy.savez('input.npz', W=W, K=3)")
+
+
 def _load_npz(path):
-    """The arrays of an ``.npz`` as a dict, with one-line errors for every bad file."""
+    """The arrays of the input ``.npz`` (:func:`nrsfm.io.load_npz`), W among them."""
     path = Path(path).expanduser()
-    if path.is_dir():
-        raise ValueError(f"input {path} is a folder; give an .npz file")
-    if not path.is_file():
-        raise FileNotFoundError(f"input file {path} not found")
-    if path.stat().st_size == 0:
-        raise ValueError(f"input {path} is empty")
-    try:
-        loaded = np.load(path, allow_pickle=False)
-    except ValueError as exc:
-        raise ValueError(f"cannot read {path}: not an .npz file ({one_line(exc)})") from exc
-    except (EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        raise ValueError(f"cannot read {path}: corrupt .npz file ({one_line(exc)})") from exc
-    if isinstance(loaded, np.ndarray):
-        raise ValueError(f"{path} is a .npy file (one array); nrsfm run reads an .npz with "
-                         "an array named W, e.g. numpy.savez('input.npz', W=W, K=3)")
-    data = {}
-    with loaded as z:
-        for key in z.files:
-            try:
-                data[key] = z[key]
-            except ValueError as exc:
-                if "allow_pickle" in str(exc) or "Object arrays" in str(exc):
-                    raise ValueError(f"{path}: array {key!r} is an object array; save "
-                                     "numeric arrays only") from exc
-                raise ValueError(f"cannot read array {key!r} of {path}: "
-                                 f"{one_line(exc)}") from exc
-            except (EOFError, OSError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
-                raise ValueError(f"cannot read array {key!r} of {path}: corrupt .npz file "
-                                 f"({one_line(exc)})") from exc
+    data = load_npz(path, "input", INPUT_EXPECTED)
     if "W" not in data:
         raise ValueError(f"{path} has no array 'W' (found: {sorted(data) or 'no arrays'})")
     return data

@@ -13,15 +13,19 @@ import numpy as np
 
 from .common import (add_rrd_option, output_path, positive_int, print_report, rrd_path, say,
                      seed, write_recording)
+from .reconstruct import add_shape_solver_option
 
-__all__ = ["add_video_commands", "cmd_track", "cmd_video"]
+__all__ = ["add_video_commands", "cmd_track", "cmd_video", "cmd_demo_video"]
 
 
-def _track(args):
-    """Frames of ``args.video`` and their tracks (printed summary)."""
+def _track(args, check=None):
+    """Frames of ``args.video`` and their tracks (printed summary); ``check(frames)`` runs
+    before the tracking."""
     from data_tools.video import load_frames, track_dense, track_sparse
 
     frames = load_frames(args.video, max_frames=args.max_frames)
+    if check is not None:
+        check(frames)
     t0 = time.perf_counter()
     if args.dense:
         tracks = track_dense(frames, step=args.step, fb_threshold=args.fb_threshold,
@@ -57,31 +61,92 @@ def _save_video_rrd(rrd, frames, tracks, vr):
           f"{info['seconds']:.1f} s; open it with: rerun {rrd})")
 
 
+def _ground_truth(args):
+    """The ``--ground-truth`` file read (before the work), or None."""
+    if args.ground_truth is None:
+        return None
+    from data_tools.video_truth import load_ground_truth
+
+    return load_ground_truth(Path(args.ground_truth).expanduser())
+
+
+def _check_truth(truth, frames, args):
+    """The ground truth must describe the video read: as many frames, the same size."""
+    if truth is None:
+        return
+    if truth.n_frames != len(frames):
+        raise ValueError(f"--ground-truth {args.ground_truth} has {truth.n_frames} frames "
+                         f"but {len(frames)} were read from {args.video}")
+    if tuple(truth.id0.shape) != tuple(frames.shape[1:3]):
+        raise ValueError(f"--ground-truth {args.ground_truth} is for images of "
+                         f"{truth.id0.shape[1]}x{truth.id0.shape[0]} but {args.video} has "
+                         f"{frames.shape[2]}x{frames.shape[1]}")
+
+
+def _score(truth, tracks, vr):
+    """Print and return the errors of the used tracks that started on the surface."""
+    from data_tools.video_truth import score_tracks
+
+    sc = score_tracks(truth, tracks, vr)
+    print(f"  errors against ground truth ({sc['n_scored']} of the {sc['n_used']} used "
+          f"tracks, those that started on the surface): e3d {sc['e3d']:.4f}, e3d (Akhter) "
+          f"{sc['e3d_akhter']:.4f}, e_R {sc['e_R']:.4f}")
+    return sc
+
+
 def cmd_video(args):
-    """``nrsfm video VIDEO --rrd out.rrd [-o out.npz]``."""
+    """``nrsfm video VIDEO --rrd out.rrd [-o out.npz] [--ground-truth GT.npz]``."""
     from ..io import save_npz
     from ..tracks import reconstruct_tracks
 
     out = output_path(args.output, "-o") if args.output else None   # before the work
     rrd = rrd_path(args, Path(args.video).stem + ".rrd")
-    frames, tracks = _track(args)
+    truth = _ground_truth(args)
+    frames, tracks = _track(args, check=lambda fr: _check_truth(truth, fr, args))
     K = 1 if args.K is None else args.K
     vr = reconstruct_tracks(tracks.W, K, method=args.method, seed=args.seed,
+                            shape_solver=args.shape_solver,
                             missing="complete" if args.complete_tracks else "auto",
                             progress=not args.quiet)
     how = (f"the {int(vr.used.sum())} tracks seen in 2+ frames (missing data)"
            if vr.missing_data else f"the {vr.n_complete} complete tracks of {vr.n_tracks}")
     print(f"reconstructed {how} with K={K}")
     print_report(vr.result)
+    scores = {} if truth is None else _score(truth, tracks, vr)
     if out is not None:
         save_npz(out, W=tracks.W, used=vr.used, rotations=vr.result.rotations,
                  shapes=vr.result.shapes, colors=tracks.colors, lost_at=tracks.lost_at,
                  started_at=tracks.start, undetermined=vr.result.undetermined, K=K,
-                 method=np.array(vr.result.method))
+                 method=np.array(vr.result.method),
+                 **{k: np.float64(v) if isinstance(v, float) else np.int64(v)
+                    for k, v in scores.items()})
         print(f"wrote {out}")
     if rrd is not None:
         _save_video_rrd(rrd, frames, tracks, vr)
     return 0
+
+
+def cmd_demo_video(args):
+    """``nrsfm demo --video``: write the synthetic video and its ground truth, then run
+    ``nrsfm video FRAMES --ground-truth GT.npz`` on them (the command is printed)."""
+    from data_tools.synthetic_video import make_video
+    from data_tools.video_truth import write_video
+
+    from . import build_parser
+    from ..paths import output_dir
+
+    rrd = rrd_path(args, "demo_video.rrd")
+    F, size = args.frames or 40, args.size or (240, 320)
+    video = make_video(args.surface or "sheet", n_frames=F, size=size, seed=args.seed)
+    frames, truth = write_video(video, output_dir("demo_video"))
+    argv = ["video", str(frames), "--ground-truth", str(truth), "--method", args.method,
+            "--shape-solver", args.shape_solver, "--seed", str(args.seed)]
+    argv += (["--rrd", str(rrd)] if rrd is not None else []) + (
+        ["--quiet"] if args.quiet else [])
+    print(f"synthetic video: {video.surface}, {F} frames of {size[1]}x{size[0]}, seed "
+          f"{args.seed}; wrote {frames}/*.png and {truth}")
+    print("running: nrsfm " + " ".join(argv), flush=True)
+    return cmd_video(build_parser().parse_args(argv))
 
 
 def _add_tracking(p):
@@ -124,11 +189,17 @@ def add_video_commands(subparsers):
     p.add_argument("--method", choices=sorted(METHODS), default="organic",
                    help="pipeline (default: organic)")
     p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    add_shape_solver_option(p)
     p.add_argument("--complete-tracks", action="store_true",
                    help="reconstruct only the tracks observed in every frame (default: every "
                         "track seen in 2+ frames, lost and late entries completed as "
                         "missing data)")
     add_rrd_option(p, "VIDEO_NAME.rrd")
     p.add_argument("-o", "--output", help="write tracks, rotations and shapes (.npz)")
+    p.add_argument("--ground-truth", metavar="GT.npz",
+                   help="score the reconstruction against this ground truth of a synthetic "
+                        "video (written by data_tools.write_video or nrsfm demo --video): "
+                        "e3d, e3d (Akhter) and e_R over the used tracks that started on "
+                        "the surface (also saved with -o)")
     p.set_defaults(func=cmd_video)
     return subparsers

@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..paths import mocap_dir
 from .executors import run_tasks
 from .plan import build_plan, unique_tasks
 from .report import write_report
@@ -16,20 +17,28 @@ __all__ = ["run_benchmark", "resolve_data_dir"]
 
 
 def resolve_data_dir(data=None):
-    """The folder with the MoCap ``.mat`` files: ``data`` or ``data/mocap``, default
-    ``$NRSFM_DATA/mocap``. Raises FileNotFoundError naming the folder."""
-    if data is None:
-        root = os.environ.get("NRSFM_DATA")
-        if not root:
-            raise FileNotFoundError("no benchmark data folder: pass --data DIR (the folder "
-                                    "holding the .mat files or mocap/) or set NRSFM_DATA")
-        data = Path(root) / "mocap"
-    data = Path(data)
-    if (data / "mocap").is_dir():
-        data = data / "mocap"
-    if not data.is_dir():
-        raise FileNotFoundError(f"benchmark data folder {data} does not exist")
-    return data
+    """The folder with the MoCap ``.mat`` files (:func:`nrsfm.paths.mocap_dir`).
+
+    Parameters
+    ----------
+    data : str or Path, optional
+        The folder that holds ``mocap/``, or ``mocap/`` itself; default ``$NRSFM_DATA``
+        (either form too).
+
+    Returns
+    -------
+    folder : Path
+
+    Raises
+    ------
+    FileNotFoundError
+        No folder given, or the folder does not exist (the message names it).
+    """
+    folder = mocap_dir(data)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"benchmark data folder {folder} does not exist; pass the "
+                                "folder that holds mocap/ (or mocap/ itself)")
+    return folder
 
 
 def run_benchmark(out, data=None, only=None, sequences=None, quick=False, workers=1,
