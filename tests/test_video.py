@@ -1,6 +1,8 @@
 """Video to 3D: synthetic video ground truth, tracking with the forward-backward check,
 video input and its errors, the ``track`` / ``video`` commands, the video recording."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -214,8 +216,11 @@ def test_track_and_video_commands(tmp_path, video, capsys):
         assert z["W"].shape[0] == 24 and z["tracks"].shape[1] == 2
         assert z["colors"].shape == (z["W"].shape[1], 3)
     rrd, res = tmp_path / "run.rrd", tmp_path / "run.npz"
-    assert _run(["video", str(folder), "--dense", "--step", "8", "--rrd", str(rrd),
-                 "-o", str(res), "--method", "pseudo_inverse", "--quiet"]) == 0
+    # --detect-every 0: lost tracks (missing data) but no late ones, whose completion
+    # converges (with late tracks it stops at its cap: test_video_completion_converges)
+    assert _run(["video", str(folder), "--dense", "--step", "8", "--detect-every", "0",
+                 "--rrd", str(rrd), "-o", str(res), "--method", "pseudo_inverse",
+                 "--quiet"]) == 0
     text = capsys.readouterr().out
     assert "K=1" in text and "wrote Rerun recording" in text
     assert rrd.stat().st_size > 10_000
@@ -352,7 +357,7 @@ def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
 
     tr = track_sparse(video.frames, detect_every=3)
     assert (tr.start > 0).any()
-    vr = reconstruct_tracks(tr.W, 1, method="pseudo_inverse")
+    vr = _reconstruct_tracks_warning_iff_capped(tr.W, 1, method="pseudo_inverse")
     assert vr.missing_data and vr.result.fill_gain is not None
     und = vr.result.undetermined
     assert 0 < und.sum() < und.size                           # short late tracks
@@ -362,3 +367,30 @@ def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
     colors = _track_colors(vr.used, np.isin(np.arange(tr.n_points),
                                             np.flatnonzero(vr.used)[und]))
     assert (colors[np.flatnonzero(vr.used)[und]] == UNDETERMINED_COLOR).all()
+
+
+CAP_WARNING = "the completion of W stopped at its iteration cap"
+
+
+def _reconstruct_tracks_warning_iff_capped(W, K, **kw):
+    """reconstruct_tracks, asserting its warnings: the completion's iteration-cap warning
+    exactly when the completion did not converge, and no other."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        vr = reconstruct_tracks(W, K, **kw)
+    got = [(w.category, str(w.message)[:len(CAP_WARNING)]) for w in caught]
+    assert got == ([] if vr.result.completion.converged else [(RuntimeWarning, CAP_WARNING)])
+    return vr
+
+
+@pytest.mark.xfail(strict=True, reason="known (issue 21 report): on the synthetic video with "
+                   "late tracks the factorisation completion stops at its 300-iteration cap; "
+                   "uncapped it converges in 430 (detect_every=3) and 966 (5) iterations")
+@pytest.mark.parametrize("detect_every", [3, 5])
+def test_video_completion_converges(video, detect_every):
+    """Sparse tracks with late starts (``nrsfm video``'s default is detect_every=5): the
+    completion of W converges within its cap."""
+    tr = track_sparse(video.frames, detect_every=detect_every)
+    assert (tr.start > 0).any() and np.isnan(tr.W).any()
+    vr = _reconstruct_tracks_warning_iff_capped(tr.W, 1, method="pseudo_inverse")
+    assert vr.missing_data and vr.result.completion.converged
