@@ -237,6 +237,7 @@ def test_real_stages_recording(tmp_path, seq):
     n = len(res.shape_stage.history["cost"])
     assert n > 0 and sum(b.num_rows for b in data["/admm/cost"]["temporal"]) == n
     stage = res.rotation_stage
+    assert stage.registered is not None and stage.kept is not None
     K = np.asarray(stage.registered).shape[0]
     assert K == seq.K
     for k in range(1, K + 1):
