@@ -29,11 +29,22 @@ def _planar(F=60, P=20, K=2, seed=0):
     return (seq.rotations[:, :2] @ X).reshape(2 * F, P)
 
 
-def _run(W, K, **kw):
+#: the shape stage's warning for W of rank below 3K (the rank-K fit is then not unique)
+NOT_UNIQUE = "the rank-{K} fit of W with these cameras is not unique"
+
+
+def _run(W, K, not_unique=False, **kw):
+    """reconstruct(W, K); its NRSfMWarnings. Any other warning fails, except the shape
+    stage's "not unique", which ``not_unique=True`` (W of rank below 3K) requires."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = nrsfm.reconstruct(W, K, **kw)
-    return res, [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+    flags = [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+    other = [(w.category, str(w.message)[:len(NOT_UNIQUE.format(K=K))]) for w in caught
+             if w not in flags]
+    expected = {(RuntimeWarning, NOT_UNIQUE.format(K=K))} if not_unique else set()
+    assert len(other) >= not_unique and set(other) == expected, other
+    return res, flags
 
 
 def test_three_K_above_centred_rank_is_value_error_naming_both():
@@ -43,7 +54,7 @@ def test_three_K_above_centred_rank_is_value_error_naming_both():
 
 
 def test_planar_object_rank_deficient_warns_with_rank():
-    res, caught = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    res, caught = _run(_planar(), 2, not_unique=True, rotation_options=dict(max_starts=6))
     assert len(caught) == 1
     msg = str(caught[0].message)
     assert "rank 4 < 3K = 6" in msg
@@ -116,7 +127,7 @@ def test_bad_triplet_is_flagged():
 
 def test_warning_class_and_report(tmp_path, capsys):
     assert issubclass(nrsfm.NRSfMWarning, UserWarning)
-    res, _ = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    res, _ = _run(_planar(), 2, not_unique=True, rotation_options=dict(max_starts=6))
     text = res.diagnostics.summary()
     assert "WARNING" in text and "numerical_rank = 4" in text
     pytest.importorskip("rerun")
@@ -129,6 +140,10 @@ def test_warning_class_and_report(tmp_path, capsys):
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", nrsfm.NRSfMWarning)   # the CLI prints, not warns
+        warnings.filterwarnings("always", NOT_UNIQUE.format(K=2), RuntimeWarning)
         main(["run", str(path), "-o", str(tmp_path / "out.npz"), "--quiet"])
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    # other warnings: one line each on stderr (W is planar: the rank-2 fit is not unique)
+    assert err.splitlines() and all(line.startswith("nrsfm: warning: " + NOT_UNIQUE.format(K=2))
+                                    for line in err.splitlines()), err
     assert "WARNING: W is numerically rank-deficient: rank 4 < 3K = 6" in out

@@ -140,14 +140,21 @@ def test_choose_K_on_synthetic_sequences():
         choose_K(seq.W, relative_floor=2)
 
 
-@pytest.mark.filterwarnings("ignore:the completion of W stopped")   # tracking, F = 30
-def test_benchmark_command_writes_tables_and_plots(tmp_path):
+CAP_WARNING = "the completion of W stopped at its iteration cap"
+
+
+# known (issue 21 report): the missing-data tasks on synthetic-1 (F = 30, P = 15; 30% and 50%
+# missing) stop at the completion's iteration cap; the CLI prints each warning as one line
+@pytest.mark.filterwarnings(f"always:{CAP_WARNING}:RuntimeWarning")
+def test_benchmark_command_writes_tables_and_plots(tmp_path, capsys):
     from nrsfm.cli import main
 
     out = tmp_path / "bench"
     rc = main(["benchmark", "--out", str(out), "--sequences", "synthetic-1", "--quick",
                "--only", "mocap", "missing", "--quiet"])
     assert rc == 0
+    err = capsys.readouterr().err.splitlines()
+    assert all(line.startswith(f"nrsfm: warning: {CAP_WARNING}") for line in err), err
     for name in ("mocap.md", "mocap.csv", "missing.md", "missing_curve.png", "README.md"):
         assert (out / name).is_file(), name
     text = (out / "mocap.md").read_text()

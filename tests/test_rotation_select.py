@@ -27,11 +27,21 @@ def _rigid_plus_planar(F=60, P=24, seed=0):
     return cam[:, :2].reshape(2 * F, P), cam, seq.rotations
 
 
+#: the shape stage's warning for W of rank below 3K (the rank-K fit is then not unique)
+NOT_UNIQUE = "the rank-{K} fit of W with these cameras is not unique"
+
+
 def _run(W, K):
+    """reconstruct(W, K) of a W of rank below 3K; its NRSfMWarnings. The shape stage warns
+    that the rank-K fit is not unique (the prior decides), and nothing else may warn."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = nrsfm.reconstruct(W, K)
-    return res, [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+    flags = [w for w in caught if issubclass(w.category, nrsfm.NRSfMWarning)]
+    other = [(w.category, str(w.message)[:len(NOT_UNIQUE.format(K=K))]) for w in caught
+             if w not in flags]
+    assert set(other) == {(RuntimeWarning, NOT_UNIQUE.format(K=K))}, other
+    return res, flags
 
 
 def test_subspace_reproduces_the_motion_factor():
