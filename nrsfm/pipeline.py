@@ -315,7 +315,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
             rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
                                                          settings.shape, say)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
-    diagnostics.warn(stacklevel=2)
+    diagnostics.warn()                               # points at the caller of reconstruct
     params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):

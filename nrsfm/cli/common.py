@@ -16,8 +16,9 @@ import sys
 from pathlib import Path
 
 from ..io import atomic_output, check_output_path
+from ..settings import shape_solvers
 
-__all__ = ["EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_STATUS_HELP",
+__all__ = ["add_shape_solver_option", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_STATUS_HELP",
            "UsageError", "Parser", "one_line", "fail", "positive_int", "seed",
            "add_rrd_option", "rrd_path", "output_path", "say", "write_recording",
            "print_report"]
@@ -144,3 +145,11 @@ def print_report(result, seq=None):
             parts.append(f"e_R {_num(errs['e_R'])}")
         print("  errors against ground truth: " + ", ".join(parts))
     return errs
+
+
+def add_shape_solver_option(p):
+    """``--shape-solver`` (every command that reconstructs)."""
+    p.add_argument("--shape-solver", choices=shape_solvers(), default="bilinear",
+                   help="shape-stage solver (default: bilinear; admm: the paper's "
+                        "continuation ADMM; closed_form: exact rank-K, no prior; "
+                        "constrained: W fitted to within its noise)")

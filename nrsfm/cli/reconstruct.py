@@ -8,11 +8,10 @@ import os
 
 from ..validation import check_K
 from ..pipeline import METHODS, reconstruct
-from ..settings import shape_solvers
-from .common import (UsageError, add_rrd_option, positive_int, print_report, rrd_path, seed,
-                     write_recording)
+from .common import (UsageError, add_rrd_option, add_shape_solver_option, positive_int,
+                     print_report, rrd_path, seed, write_recording)
 
-__all__ = ["add_common_options", "add_shape_solver_option", "save_rrd", "add_demo_command",
+__all__ = ["add_common_options", "save_rrd", "add_demo_command",
            "add_mocap_command"]
 
 
@@ -24,14 +23,6 @@ def add_common_options(p, rrd_name="NAME.rrd"):
     p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
     add_rrd_option(p, rrd_name)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
-
-
-def add_shape_solver_option(p):
-    """``--shape-solver`` (every command that reconstructs)."""
-    p.add_argument("--shape-solver", choices=shape_solvers(), default="bilinear",
-                   help="shape-stage solver (default: bilinear; admm: the paper's "
-                        "continuation ADMM; closed_form: exact rank-K, no prior; "
-                        "constrained: W fitted to within its noise)")
 
 
 def save_rrd(result, path, seq=None):

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import (add_rrd_option, output_path, positive_int, print_report, rrd_path, say,
-                     seed, write_recording)
-from .reconstruct import add_shape_solver_option
+from .common import (add_rrd_option, add_shape_solver_option, output_path, positive_int,
+                     print_report, rrd_path, say, seed, write_recording)
 
 __all__ = ["add_video_commands", "cmd_track", "cmd_video", "cmd_demo_video"]
 
