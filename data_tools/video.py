@@ -238,6 +238,7 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
     Returns
     -------
     Tracks
+        One track per grid point kept (dense: ``step`` pixels apart).
 
     Raises
     ------

@@ -47,7 +47,6 @@ Signals (name: meaning; flagged when)
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -140,11 +139,10 @@ class Diagnostics:
         lines += [f"WARNING: {f}" for f in self.flags]
         return "\n".join(lines)
 
-    def warn(self, stacklevel=3):
-        """Issue one :class:`NRSfMWarning` listing the flags (nothing if none)."""
-        if self.flags:
-            warnings.warn("unreliable reconstruction: " + "; ".join(self.flags),
-                          NRSfMWarning, stacklevel=stacklevel)
+    @property
+    def message(self):
+        """The one warning a flagged run raises (:class:`NRSfMWarning`), or None."""
+        return "unreliable reconstruction: " + "; ".join(self.flags) if self.flags else None
 
 
 # ----------------------------------------------------------------------------- signals

@@ -9,6 +9,8 @@ looks like and what was expected; nothing is ever unpickled, and no message sugg
 
 from __future__ import annotations
 
+import io
+
 import os
 import tempfile
 import zipfile
@@ -197,8 +199,8 @@ def _open_npz(path, what, expected):
     if not head.startswith((b"PK\x03\x04", b"PK\x05\x06")):
         raise ValueError(f"cannot read {what} {path}: not an .npz archive, it is "
                          f"{_looks_like(head)}; expected {expected}")
-    try:
-        return path, np.load(path, allow_pickle=False)
+    try:                  # from memory: a corrupt archive leaves no file handle open
+        return path, np.load(io.BytesIO(path.read_bytes()), allow_pickle=False)
     except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"cannot read {what} {path}: corrupt .npz archive "
                          f"({_reason(exc)}); expected {expected}") from exc

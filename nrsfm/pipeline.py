@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .diagnostics import diagnose
+from .diagnostics import NRSfMWarning, diagnose
 from .settings import METHODS, Settings, method_settings
 from .stages.completion import complete
 from .stages.measurement import Factorization, measure
@@ -315,7 +316,8 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
             rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
                                                          settings.shape, say)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
-    diagnostics.warn()                               # points at the caller of reconstruct
+    if diagnostics.flags:
+        warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):

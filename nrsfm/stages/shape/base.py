@@ -55,20 +55,8 @@ class SolverSettings:
         SOLVERS[name] = cls
 
     def solve(self, W, R, K, prior, progress=None):
-        """Solve the shape stage.
-
-        Parameters
-        ----------
-        W : (2F, P) ndarray
-            Row-centred measurements.
-        R : (F, 3, 3) or (F, 2, 3) ndarray
-        K : int
-        prior : str or None
-            One of :data:`PRIORS`; None for a solver with ``uses_prior = False``.
-        progress : callable(str) or None
-
-        Returns
-        -------
-        nrsfm.stages.shape.ShapeResult
-        """
+        """Solve the shape stage for row-centred W (2F, P), cameras R (F, 2 or 3, 3) and K
+        bases, with ``prior`` one of :data:`PRIORS` (None for a solver with
+        ``uses_prior = False``) and ``progress`` a callable(str) or None; returns a
+        :class:`nrsfm.stages.shape.ShapeResult` (:func:`nrsfm.stages.shape.solve_shape`)."""
         raise NotImplementedError(f"{type(self).__name__} does not implement solve")
