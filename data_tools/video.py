@@ -94,29 +94,45 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
     ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
     lk = dict(winSize=(window, window), maxLevel=levels,
               criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+
+    def move(prev, cur, p):                     # pyramidal Lucas-Kanade, both ways
+        p = p.reshape(-1, 1, 2)
+        q, st, res = cv2.calcOpticalFlowPyrLK(prev, cur, p, None, **lk)
+        b, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, q, None, **lk)
+        e = np.linalg.norm((b - p).reshape(-1, 2), axis=1)
+        bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~(e <= fb_threshold)
+               | ~(res.ravel() <= max_residual))
+        return q.reshape(-1, 2), e, bad
+
+    _follow(frames, ts, move, lambda f, cur: _detect_corners(
+        ts, f, cur, frames[f], max_points, quality, min_distance),
+        keep_raw, neighbour_px, detect_every)
+    params = dict(max_points=max_points, quality=quality, min_distance=min_distance,
+                  window=window, levels=levels, fb_threshold=fb_threshold,
+                  max_residual=max_residual, neighbour_px=neighbour_px,
+                  n_neighbours=n_neighbours, detect_every=detect_every)
+    return ts.finish("sparse", (H, W), params, keep_raw)
+
+
+def _follow(frames, ts, move, detect, keep_raw, neighbour_px, detect_every):
+    """The frame loop both trackers share: the live tracks of frame f - 1 moved to frame f
+    by ``move(prev, cur, p) -> (q, forward-backward error, bad)`` (a point leaving the
+    image is bad too), the track set advanced, and ``detect(f, cur)`` every
+    ``detect_every`` frames."""
+    prev = _gray(frames[0])
+    H, W = prev.shape
     for f in range(1, len(frames)):
         cur = _gray(frames[f])
         if cur.shape != (H, W):
             raise ValueError(f"frame {f} is {cur.shape[::-1]} but frame 0 is {(W, H)}")
         idx, nxt, err = ts.moving(keep_raw)
         if len(idx):
-            p = ts.pts[idx].reshape(-1, 1, 2)
-            q, st, res = cv2.calcOpticalFlowPyrLK(prev, cur, p, None, **lk)
-            b, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, q, None, **lk)
-            e = np.linalg.norm((b - p).reshape(-1, 2), axis=1)
-            q = q.reshape(-1, 2)
-            bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~_inside(q, W, H)
-                   | ~(e <= fb_threshold) | ~(res.ravel() <= max_residual))
-            _advance(f, idx, q, e, bad, nxt, err, ts.active, ts.lost_at)
+            q, e, bad = move(prev, cur, ts.pts[idx])
+            _advance(f, idx, q, e, bad | ~_inside(q, W, H), nxt, err, ts.active, ts.lost_at)
         ts.step(f, nxt, err, neighbour_px)
         prev = cur
         if _detect_due(f, len(frames), detect_every):
-            _detect_corners(ts, f, cur, frames[f], max_points, quality, min_distance)
-    params = dict(max_points=max_points, quality=quality, min_distance=min_distance,
-                  window=window, levels=levels, fb_threshold=fb_threshold,
-                  max_residual=max_residual, neighbour_px=neighbour_px,
-                  n_neighbours=n_neighbours, detect_every=detect_every)
-    return ts.finish("sparse", (H, W), params, keep_raw)
+            detect(f, cur)
 
 
 def _detect_corners(ts, f, gray, frame, max_points, quality, min_distance):
@@ -271,28 +287,18 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
     if max_points is not None and len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, int(max_points)).astype(int)]
     ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
-    for f in range(1, len(frames)):
-        cur = _gray(frames[f])
-        if cur.shape != (H, W):
-            raise ValueError(f"frame {f} is {cur.shape[::-1]} but frame 0 is {(W, H)}")
-        fw = calc(prev, cur)
-        bw = calc(cur, prev)
-        idx, nxt, err = ts.moving(keep_raw)
-        if len(idx):
-            p = ts.pts[idx]
-            q = p + _sample(fw, p)
-            back = q + _sample(bw, q)
-            e = np.linalg.norm(back - p, axis=1)
-            warped = cv2.remap(cur, gx + fw[..., 0], gy + fw[..., 1], cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_REPLICATE)
-            diff = cv2.blur(cv2.absdiff(prev, warped).astype(np.float32), (window, window))
-            res = _sample(diff, p)
-            bad = ~_inside(q, W, H) | ~(e <= fb_threshold) | ~(res <= max_residual)
-            _advance(f, idx, q, e, bad, nxt, err, ts.active, ts.lost_at)
-        ts.step(f, nxt, err, neighbour_px)
-        prev = cur
-        if _detect_due(f, len(frames), detect_every):
-            _detect_grid(ts, f, cur, frames[f], step, erode, max_points)
+
+    def move(prev, cur, p):                     # dense flow both ways, sampled at p
+        fw, bw = calc(prev, cur), calc(cur, prev)
+        q = p + _sample(fw, p)
+        e = np.linalg.norm(q + _sample(bw, q) - p, axis=1)
+        warped = cv2.remap(cur, gx + fw[..., 0], gy + fw[..., 1], cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE)
+        diff = cv2.blur(cv2.absdiff(prev, warped).astype(np.float32), (window, window))
+        return q, e, ~(e <= fb_threshold) | ~(_sample(diff, p) <= max_residual)
+
+    _follow(frames, ts, move, lambda f, cur: _detect_grid(
+        ts, f, cur, frames[f], step, erode, max_points), keep_raw, neighbour_px, detect_every)
     params = dict(step=step, fb_threshold=fb_threshold, max_residual=max_residual,
                   neighbour_px=neighbour_px, n_neighbours=n_neighbours,
                   window=window, flow=flow, erode=erode,
