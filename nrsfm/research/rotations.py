@@ -33,7 +33,7 @@ from ..stages.rotations import (RotationSettings, rotations_from_triplets,
 from ..stages.rotations.stage import MIN_WINDOW_FRAMES, average_samples, record_search
 from ..validation import check_choice, check_integer, check_positive
 from .family import combine_triplets
-from .triplets import chordal_mean, corrective_triplets_from, triplet_from_rotations
+from .triplets import STARTS, chordal_mean, corrective_triplets_from, triplet_from_rotations
 
 __all__ = ["STRATEGIES", "RotationAblationSettings", "estimate_rotations_ablation",
            "research_settings", "rotation_settings", "subset_weights"]
@@ -241,7 +241,7 @@ class RotationAblationSettings(RotationSettings):
         check_choice("filter_metric", self.filter_metric, ("angle", "chordal"))
         check_positive("coef_gate", self.coef_gate, strict=False)
         check_choice("subsets", self.subsets, ("windows", "bootstrap", "random"))
-        check_choice("starts", self.starts, ("search", "relaxed", "dai", "columns", "multistart"))
+        check_choice("starts", self.starts, STARTS)
         check_positive("lam", self.lam)
         check_choice("gram", self.gram, ("penalized", "nuclear"))
         for name in ("n_random", "n_full", "screen_frames", "screen_iter"):

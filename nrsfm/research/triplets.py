@@ -16,9 +16,13 @@ from ..geometry import project_to_so3
 from ..stages.corrective import CorrectiveResult, corrective_triplets, refine_triplet
 from ..stages.relaxation import (constraint_matrix, gram_from_vech, penalized_gram,
                                  triplets_from_gram)
+from ..validation import check_choice
 
-__all__ = ["chordal_mean", "corrective_triplets_from", "relaxed_gram", "row_space_residual",
+__all__ = ["STARTS", "chordal_mean", "corrective_triplets_from", "relaxed_gram", "row_space_residual",
            "solution_space", "triplet_from_rotations"]
+
+#: where the triplet refinement starts (:func:`corrective_triplets_from`)
+STARTS = ("search", "relaxed", "dai", "columns", "multistart")
 
 
 def chordal_mean(samples, mask=None):
@@ -263,8 +267,7 @@ def corrective_triplets_from(M_hat, K, starts="search", seed=0, n_random=32, n_f
         As :func:`nrsfm.stages.corrective.corrective_triplets`, ``G`` sorted by cost.
     """
     M = np.asarray(M_hat, float)
-    if starts not in ("search", "relaxed", "dai", "columns", "multistart"):
-        raise ValueError(f"unknown starts {starts!r}")
+    check_choice("starts", starts, STARTS)
     if starts == "search":
         return corrective_triplets(M, K, seed=seed, hits=hits, max_starts=max_starts,
                                    sdp_solver=sdp_solver, refine=refine)
