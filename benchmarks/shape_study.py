@@ -50,7 +50,7 @@ from nrsfm.published import published_value
 from nrsfm.stages.shape.admm import normalization_scale
 from nrsfm.stages.shape import solve_shapes
 from nrsfm.stages.shape.admm import AdmmSettings, admm_iterations
-from nrsfm.stages.shape.bilinear import closed_form_shapes
+from nrsfm.stages.shape.closed_form import closed_form_shapes
 
 AKHTER4 = ("drink", "pickup", "yoga", "stretch")
 SOLVERS = ("admm", "bilinear")

@@ -18,8 +18,8 @@ from ..stages.relaxation import (constraint_matrix, gram_from_vech, penalized_gr
                                  triplets_from_gram)
 from ..validation import check_choice
 
-__all__ = ["STARTS", "chordal_mean", "corrective_triplets_from", "relaxed_gram", "row_space_residual",
-           "solution_space", "triplet_from_rotations"]
+__all__ = ["STARTS", "chordal_mean", "corrective_triplets_from", "relaxed_gram",
+           "row_space_residual", "solution_space", "triplet_from_rotations"]
 
 #: where the triplet refinement starts (:func:`corrective_triplets_from`)
 STARTS = ("search", "relaxed", "dai", "columns", "multistart")
