@@ -57,19 +57,9 @@ def _timed(fn):
 
 
 def rank_deficient(F=80, P=30, K=2, motion="smooth", seed=0):
-    """Rigid body plus a planar deformation: X_f = S_0 + b_f S_1, S_1 with zero third row
-    (planar), so rank(W) = 3 + 2 = 5 < 3K. Returns (W, R, X_world) with R (F, 3, 3)."""
-    rng = np.random.default_rng(seed)
-    S0 = rng.standard_normal((3, P))
-    S1 = np.zeros((3, P))
-    S1[:2] = 0.5 * rng.standard_normal((2, P))
-    S0 -= S0.mean(axis=1, keepdims=True)
-    S1 -= S1.mean(axis=1, keepdims=True)
-    b = np.sin(np.linspace(0, 3 * np.pi, F) + rng.uniform(0, 2 * np.pi))
-    X = S0[None] + b[:, None, None] * S1[None]
-    R = dt.camera_rotations(F, motion, rng)
-    W = (R[:, :2] @ X).reshape(2 * F, P)
-    return W, R, X
+    """(W, R, X_world) of :func:`data_tools.make_rank_deficient` (W of rank 5)."""
+    seq = dt.make_rank_deficient(F, P, motion, seed)
+    return seq.W, seq.rotations, seq.world_shapes
 
 
 def section_gt(seqs):

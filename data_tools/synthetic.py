@@ -101,6 +101,39 @@ def make_synthetic(F=120, P=40, K=3, motion="smooth", noise=0.0, deformation=0.4
                                motion=motion, noise=noise, seed=seed))
 
 
+def make_rank_deficient(F=80, P=30, motion="smooth", seed=0, name=None):
+    """A rigid body plus one planar deformation: ``X_f = S_0 + b_f S_1`` with ``S_1`` in the
+    plane z = 0 of the world, so that W has rank 3 + 2 = 5, below 3K for K = 2 (the true
+    K) and above.
+
+    Parameters
+    ----------
+    F, P : int
+    motion : {"smooth", "fast", "static", "random"}
+        Camera trajectory, see :func:`camera_rotations`.
+    seed : int
+
+    Returns
+    -------
+    Sequence
+        ``K`` = 2, ``W`` (2F, P) centred, ``shapes`` (camera frame), ``rotations``,
+        ``world_shapes``.
+    """
+    rng = np.random.default_rng(seed)
+    S0 = rng.standard_normal((3, P))
+    S1 = np.zeros((3, P))
+    S1[:2] = 0.5 * rng.standard_normal((2, P))
+    S0 -= S0.mean(axis=1, keepdims=True)
+    S1 -= S1.mean(axis=1, keepdims=True)
+    b = np.sin(np.linspace(0, 3 * np.pi, F) + rng.uniform(0, 2 * np.pi))
+    world = S0[None] + b[:, None, None] * S1[None]
+    R = camera_rotations(F, motion, rng)
+    cam = R @ world
+    return Sequence(name=name or f"rigid-planar-{motion}", W=cam[:, :2].reshape(2 * F, P),
+                    shapes=cam, rotations=R, K=2, world_shapes=world,
+                    extra=dict(motion=motion, seed=seed))
+
+
 def default_sequence():
     """The built-in input of ``nrsfm demo``: 150 frames, 45 points, K = 3, smooth camera."""
     return make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.0, seed=7,

@@ -120,13 +120,33 @@ def test_run_tasks_rejects_bad_arguments():
 def test_plan_covers_every_experiment():
     plan = build_plan(sequences=["synthetic-1"], quick=True)
     assert set(plan) == {"mocap", "pseudo_inverse", "rotation_ablation", "noise", "missing",
-                         "n_ablation", "k_sweep", "auto_k"}
+                         "n_ablation", "k_sweep", "auto_k", "shape"}
     tasks = unique_tasks(plan)
     assert len({t.key for t in tasks}) == len(tasks)
     full = build_plan(sequences=["synthetic-1"], only=["noise"])
     assert len(full["noise"]) == 6 * 4 * 10                  # sigmas x methods x runs
     with pytest.raises(ValueError, match="unknown experiment"):
         build_plan(only=["tables"], sequences=["synthetic-1"])
+
+
+def test_shape_table_rows_cells_and_ratio():
+    """The shape experiment: its rows (without MoCap data: the synthetic ones), one task per
+    row and formulation, a cell that runs without data, and the table's best and ratio."""
+    from nrsfm.experiments.shape import COLUMNS, run_shape, shape_rows, shape_table
+
+    plan = build_plan(only=["shape"], quick=True, external="/nonexistent")
+    assert len(plan["shape"]) == 2 * len(COLUMNS)            # rank-deficient, exact
+    assert len(shape_rows()) == 4 + 8 + 2 + 24                # without the back row
+    row = dict(kind="exact", K=2, scale=1e3)
+    (cell,) = run_shape(row, "default")
+    assert cell["row"] == "exact rank K = 2" and cell["e3d"] < 1e-8
+    rows = [dict(row="a", kind="mocap", column=c, e3d=e, t_shape=1.0)
+            for c, e in zip(COLUMNS, (0.02, 0.01, 0.04))]
+    rows += [dict(row="b", kind="noise", column="default", e3d=e, t_shape=1.0)
+             for e in (0.1, 0.3)]
+    table = shape_table(rows)
+    assert table.rows[0][1:] == [0.02, 0.01, 0.04, 0.01, 2.0]
+    assert table.rows[1][1] == pytest.approx(0.2) and table.rows[1][-1] == 1.0
 
 
 def test_choose_K_on_synthetic_sequences():

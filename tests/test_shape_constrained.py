@@ -16,16 +16,8 @@ def organic_fit_shapes(W, R, K, **options):
 
 def _rank_deficient(F=40, P=16, seed=0):
     """Rigid body plus a planar deformation: rank(W) = 5 (true K = 2)."""
-    rng = np.random.default_rng(seed)
-    S0 = rng.standard_normal((3, P))
-    S1 = np.zeros((3, P))
-    S1[:2] = 0.5 * rng.standard_normal((2, P))
-    S0 -= S0.mean(axis=1, keepdims=True)
-    S1 -= S1.mean(axis=1, keepdims=True)
-    b = np.sin(np.linspace(0, 3 * np.pi, F) + 1.0)
-    X = S0[None] + b[:, None, None] * S1[None]
-    R = data_tools.camera_rotations(F, "smooth", rng)
-    return (R[:, :2] @ X).reshape(2 * F, P), R, R @ X
+    seq = data_tools.make_rank_deficient(F, P, seed=seed)
+    return seq.W, seq.rotations, seq.shapes
 
 
 @pytest.mark.parametrize("K", [1, 2, 3, 5, 8])

@@ -29,7 +29,8 @@ def cmd_benchmark(args):
     out = _output_folder(args.out, "--out")
     res = run_benchmark(out, data=args.data, only=args.only, sequences=args.sequences,
                         quick=args.quick, workers=args.workers, scheduler=args.scheduler,
-                        seed=args.seed, progress=not args.quiet)
+                        seed=args.seed, progress=not args.quiet,
+                        external=args.external_data)
     print(f"nrsfm benchmark: {res['n_tasks']} tasks ({res['n_cached']} cached) in "
           f"{res['seconds']:.1f} s; wrote {len(res['files'])} files to {res['out']} "
           f"(index: {res['out'] / 'README.md'})")
@@ -47,6 +48,9 @@ def add_benchmark_command(subparsers):
     p.add_argument("--data", metavar="DIR",
                    help="the folder that holds mocap/ with the MoCap .mat files, or mocap/ "
                         "itself (default: $NRSFM_DATA, either form too)")
+    p.add_argument("--external-data", metavar="DIR",
+                   help="folder of the external sequences (the shape table's back row; "
+                        "default: $NRSFM_EXTERNAL_DATA, or external/ beside mocap/)")
     p.add_argument("--out", required=True, help="output folder (tables, plots, cache/)")
     p.add_argument("--only", nargs="+", choices=list(EXPERIMENTS), metavar="EXPERIMENT",
                    help="run only these experiments: " + ", ".join(EXPERIMENTS))

@@ -20,6 +20,9 @@ EXPERIMENTS = {
     "n_ablation": "Fig. 3d: the shape stage's N = 0..5",
     "k_sweep": "e3d as a function of K per sequence",
     "auto_k": "automatic K from W alone beside the paper's K",
+    "shape": "the shape stage alone on ground-truth rotations, per formulation: clean and "
+             "noisy MoCap, rank-deficient and exactly rank-K shapes, back with a moving "
+             "camera (issue 22)",
 }
 
 _FULL = dict(methods=("organic", "organic-admm", "bmm", "wnn"),
@@ -88,7 +91,8 @@ def _checked(only, sequences, quick, overrides):
     return only, seqs, s
 
 
-def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overrides=None):
+def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overrides=None,
+               external=None):
     """Tasks of the selected experiments, without duplicates, in a stable order.
 
     Parameters
@@ -106,6 +110,10 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
     overrides : dict, optional
         Replace some of the settings (:func:`settings`), e.g.
         ``{"missing_patterns": ("uniform",)}``.
+    external : str, optional
+        Folder of the external sequences (the ``shape`` experiment's ``back`` row); default
+        :func:`nrsfm.experiments.shape.find_external` (``$NRSFM_EXTERNAL_DATA``, or
+        ``external/`` beside ``mocap/``); no such row when none is found.
 
     Returns
     -------
@@ -173,6 +181,11 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
     if "auto_k" in only:
         plan["auto_k"] = ([mk("auto_k", sequence=n) for n in seqs]
                           + [mocap(n, "organic") for n in seqs])
+    if "shape" in only:
+        from .shape import COLUMNS, find_external, shape_rows
+
+        rows = shape_rows(quick, find_external(external), mocap=data is not None)
+        plan["shape"] = [mk("shape", row=r, column=c) for r in rows for c in COLUMNS]
     return plan
 
 

@@ -42,7 +42,7 @@ def resolve_data_dir(data=None):
 
 
 def run_benchmark(out, data=None, only=None, sequences=None, quick=False, workers=1,
-                  scheduler=None, seed=0, progress=True, overrides=None):
+                  scheduler=None, seed=0, progress=True, overrides=None, external=None):
     """Run the selected experiments and write their tables and plots into ``out``.
 
     Parameters
@@ -53,7 +53,7 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     data : path, optional
         MoCap folder (see :func:`resolve_data_dir`). Not needed when every sequence is
         synthetic (``synthetic-SEED``).
-    only, sequences, quick, seed, overrides
+    only, sequences, quick, seed, overrides, external
         See :func:`nrsfm.experiments.plan.build_plan`.
     workers : int
         Local worker processes.
@@ -71,7 +71,7 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     synthetic = sequences and all(s.startswith("synthetic-") for s in sequences)
     data_dir = None if synthetic else resolve_data_dir(data)
     plan = build_plan(only=only, sequences=sequences, quick=quick, data=data_dir, seed=seed,
-                      overrides=overrides)
+                      overrides=overrides, external=external)
     tasks = unique_tasks(plan)
     out = Path(out)
     t0 = time.perf_counter()

@@ -206,6 +206,13 @@ def run_auto_k(sequence, seed=0, data=None):
                  rank=int(info["rank"]), **_errors(res, seq), t_total=float(secs))]
 
 
+def run_shape(row, column, seed=0, data=None):
+    """One cell of the shape-stage table (:func:`nrsfm.experiments.shape.run_shape`)."""
+    from .shape import run_shape as run
+
+    return run(row, column, seed=seed, data=data)
+
+
 RUNNERS = {
     "mocap": run_mocap,
     "pseudo_inverse": run_pseudo_inverse,
@@ -215,6 +222,7 @@ RUNNERS = {
     "n_ablation": run_n_ablation,
     "k_sweep": run_k_sweep,
     "auto_k": run_auto_k,
+    "shape": run_shape,
 }
 
 
