@@ -144,9 +144,10 @@ def test_shape_table_rows_cells_and_ratio():
             for c, e in zip(COLUMNS, (0.02, 0.01, 0.04))]
     rows += [dict(row="b", kind="noise", column="default", e3d=e, t_shape=1.0)
              for e in (0.1, 0.3)]
-    table = shape_table(rows)
-    assert table.rows[0][1:] == [0.02, 0.01, 0.04, 0.01, 2.0]
-    assert table.rows[1][1] == pytest.approx(0.2) and table.rows[1][-1] == 1.0
+    columns, lines, _ = shape_table(rows)
+    assert columns[-2:] == ["best", "default / best"]
+    assert lines[0][1:] == [0.02, 0.01, 0.04, 0.01, 2.0]
+    assert lines[1][1] == pytest.approx(0.2) and lines[1][-1] == 1.0
 
 
 def test_choose_K_on_synthetic_sequences():

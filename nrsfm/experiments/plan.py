@@ -182,10 +182,9 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
         plan["auto_k"] = ([mk("auto_k", sequence=n) for n in seqs]
                           + [mocap(n, "organic") for n in seqs])
     if "shape" in only:
-        from .shape import COLUMNS, find_external, shape_rows
+        from .shape import shape_tasks
 
-        rows = shape_rows(quick, find_external(external), mocap=data is not None)
-        plan["shape"] = [mk("shape", row=r, column=c) for r in rows for c in COLUMNS]
+        plan["shape"] = shape_tasks(mk, quick, external, mocap=data is not None)
     return plan
 
 

@@ -398,9 +398,9 @@ def build_tables(plan, results, sequences):
         extra["k_rows"] = rows_of("k_sweep")
         tables += _k_table(extra["k_rows"])
     if "shape" in plan:
-        from .shape import shape_table
+        from .shape import TITLE, shape_table
 
-        tables.append(shape_table(rows_of("shape")))
+        tables.append(Table("shape", TITLE, *shape_table(rows_of("shape"))))
     if "auto_k" in plan:
         extra["auto_rows"] = rows_of("auto_k", "auto_k")
         tables += _auto_k_table(extra["auto_rows"], paper_k)

@@ -26,7 +26,9 @@ import time
 
 import numpy as np
 
-__all__ = ["COLUMNS", "run_shape", "shape_rows", "shape_table"]
+__all__ = ["COLUMNS", "TITLE", "run_shape", "shape_rows", "shape_table", "shape_tasks"]
+
+TITLE = "Shape stage: e3d per formulation (issue 22)"
 
 #: column -> the reconstruct keywords of that formulation, as a function of K
 COLUMNS = {
@@ -70,6 +72,13 @@ def shape_rows(quick=False, external=None, mocap=True):
     if external is not None:
         rows.append(dict(kind="external", sequence="back", path="random", external=external))
     return rows
+
+
+def shape_tasks(make, quick=False, external=None, mocap=True):
+    """The experiment's tasks, ``make("shape", row=..., column=...)`` for every row of
+    :func:`shape_rows` and every column."""
+    rows = shape_rows(quick, find_external(external), mocap=mocap)
+    return [make("shape", row=r, column=c) for r in rows for c in COLUMNS]
 
 
 def find_external(folder=None):
@@ -139,10 +148,9 @@ def run_shape(row, column, seed=0, data=None):
 
 
 def shape_table(rows):
-    """The table: one line per row label (mean over noise seeds, largest over scales),
-    one column per formulation, the best of them and the default's multiple of it."""
-    from .report import Table
-
+    """The table as (columns, lines, note): one line per row label (mean over noise seeds,
+    largest over scales), one column per formulation, the best of them and the default's
+    multiple of it (:mod:`.report` makes it a Table)."""
     labels = list(dict.fromkeys(r["row"] for r in rows))
     cols = list(COLUMNS)
     lines = []
@@ -161,5 +169,4 @@ def shape_table(rows):
     note = ("e3d of the shape stage alone (ground-truth rotations; noise: mean of the "
             "seeds; exact: largest over W x 1e-3, 1, 1e3). Shape-stage seconds in all, one "
             "BLAS thread: " + ", ".join(f"{c} {s:.1f}" for c, s in secs.items()) + ".")
-    return Table("shape", "Shape stage: e3d per formulation (issue 22)",
-                 ["data"] + cols + ["best", "default / best"], lines, note)
+    return ["data"] + cols + ["best", "default / best"], lines, note
