@@ -46,7 +46,6 @@ XI_FACTOR = 5e-3
 PROGRESS_EVERY = 100
 
 
-
 @dataclass(frozen=True)
 class AdmmSettings(SolverSettings):
     """The paper's continuation ADMM (``shape_solver="admm"``).
