@@ -74,19 +74,20 @@ def triplet_residuals(G, M_hat, weights=None, jac=False):
     r[0::2], r[1::2] = r1, r2
     if not jac:
         return r
-    # d|a|^2/dG = 2 m1 a' ; d|b|^2/dG = 2 m2 b' ; d(a.b)/dG = m1 b' + m2 a'
-    dna = 2.0 * m1[:, :, None] * a[:, None, :]
-    dnb = 2.0 * m2[:, :, None] * b[:, None, :]
-    dab = m1[:, :, None] * b[:, None, :] + m2[:, :, None] * a[:, None, :]
-    inv = (1.0 / na)[:, None, None]
-    J1 = -dnb * inv + (nb / na ** 2)[:, None, None] * dna
-    J2 = 2.0 * (dab * inv - (ab / na ** 2)[:, None, None] * dna)
-    if w is not None:
-        J1, J2 = J1 * w[:, None, None], J2 * w[:, None, None]
+    # d|a|^2/dG = 2 m1 a', d|b|^2/dG = 2 m2 b', d(a.b)/dG = m1 b' + m2 a', so frame f's
+    # two rows are  J1 = m1 (c1 a)' + m2 (c2 b)'  and  J2 = m1 (c3 b + c4 a)' + m2 (c3 a)'
+    # with c1 = 2|b|^2/|a|^4, c2 = -2/|a|^2, c3 = 2/|a|^2, c4 = -4 a.b/|a|^4: per frame,
+    # [m1 m2] (3K x 2) times a 2 x 3 matrix per row, one batched matrix product
     F = M.shape[0] // 2
-    J = np.empty((2 * F, G.size))
-    J[0::2] = J1.reshape(F, -1)
-    J[1::2] = J2.reshape(F, -1)
+    inv = 1.0 / na
+    c1, c2, c3, c4 = 2.0 * nb * inv * inv, -2.0 * inv, 2.0 * inv, -4.0 * ab * inv * inv
+    if w is not None:
+        c1, c2, c3, c4 = c1 * w, c2 * w, c3 * w, c4 * w
+    C = np.empty((F, 2, 2, 3))
+    C[:, 0, 0], C[:, 0, 1] = c1[:, None] * a, c2[:, None] * b
+    C[:, 1, 0], C[:, 1, 1] = c3[:, None] * b + c4[:, None] * a, c3[:, None] * a
+    U = np.stack([m1, m2], axis=2)[:, None]                    # (F, 1, 3K, 2)
+    J = np.matmul(U, C).reshape(2 * F, G.size)
     return r, J
 
 
