@@ -41,6 +41,7 @@ __all__ = ["triplet_residuals", "triplet_cost", "refine_triplet", "CorrectiveRes
 
 # ------------------------------------------------------------------------- refinement
 _EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)
+LAM0 = 1e-3      # initial LM damping, times max diag(J'J)
 
 
 def triplet_residuals(G, M_hat, weights=None, jac=False):
@@ -115,7 +116,7 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol):
     r, J = triplet_residuals(G0, M, weights, jac=True)
     cost = float(r @ r)
     A, grad = J.T @ J, J.T @ r
-    lam = 1e-3 * float(np.max(np.diag(A))) if A.size else 1.0
+    lam = LAM0 * float(np.max(np.diag(A))) if A.size else 1.0
     nu = 2.0
     it = 0
     for it in range(1, max_iter + 1):
