@@ -140,14 +140,16 @@ def test_shape_table_rows_cells_and_ratio():
     row = dict(kind="exact", K=2, scale=1e3)
     (cell,) = run_shape(row, "default")
     assert cell["row"] == "exact rank K = 2" and cell["e3d"] < 1e-8
+    vals = [0.02, 0.01] + [0.04] * (len(COLUMNS) - 2)           # default, then the others
     rows = [dict(row="a", kind="mocap", column=c, e3d=e, t_shape=1.0)
-            for c, e in zip(COLUMNS, (0.02, 0.01, 0.04))]
+            for c, e in zip(COLUMNS, vals)]
     rows += [dict(row="b", kind="noise", column="default", e3d=e, t_shape=1.0)
              for e in (0.1, 0.3)]
     columns, lines, _ = shape_table(rows)
     assert columns[-2:] == ["best", "default / best"]
-    assert lines[0][1:] == [0.02, 0.01, 0.04, 0.01, 2.0]
+    assert lines[0][1:] == vals + [0.01, 2.0]
     assert lines[1][1] == pytest.approx(0.2) and lines[1][-1] == 1.0
+    assert lines[1][2:-2] == [None] * (len(COLUMNS) - 1)       # cells no task filled
 
 
 def test_choose_K_on_synthetic_sequences():

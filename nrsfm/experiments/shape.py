@@ -36,6 +36,8 @@ COLUMNS = {
     "admm": lambda K: dict(shape_solver="admm"),
     "rank 3K, mu_factor .01": lambda K: dict(shape_solver="bilinear",
                                              shape_options=dict(rank=3 * K, mu_factor=0.01)),
+    "admm, mu from noise": lambda K: dict(shape_solver="admm",
+                                          shape_options=dict(mu_noise=42000.0)),
 }
 
 _AKHTER = ("drink", "pickup", "yoga", "stretch")

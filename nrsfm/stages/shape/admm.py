@@ -25,13 +25,15 @@ answers, see ``docs/shape_stage.md``). The other solvers are scale-free.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar, Optional
 
 import numpy as np
 
-from ...validation import check_choice, check_integer, check_K, check_positive
+from ...noise import noise_level
+from ...validation import check_choice, check_integer, check_measurements, check_positive
 from .base import PRIORS, SolverSettings, check_prior
 from .common import ShapeResult, check_shape_inputs, phi, phi_inv, truncate_rank
 
@@ -68,6 +70,11 @@ class AdmmSettings(SolverSettings):
         ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
     init : {"rank_k", "full"}
         Start ``X = X# =`` the rank-K truncation of X_init (``rank_k``) or X_init itself.
+    mu_noise : float or None
+        When set, the weight follows the noise of W: ``mu = max(mu, mu_noise nr^2)`` with
+        ``nr`` the noise level of W beyond rank 3K (:func:`nrsfm.noise.noise_level`) over
+        W's RMS entry (a study of issue 22, ``docs/shape_stage.md``: the best weight grew
+        as the square of the noise on real shapes). None: ``mu`` as given (the paper).
     """
 
     name: ClassVar[str] = "admm"
@@ -82,6 +89,7 @@ class AdmmSettings(SolverSettings):
     gamma: float = 1e-6
     max_iter: int = 1000
     init: str = "rank_k"
+    mu_noise: Optional[float] = None
 
     def __post_init__(self):
         if self.N is not None:
@@ -96,6 +104,8 @@ class AdmmSettings(SolverSettings):
             check_positive("xi", self.xi)
         check_integer(self.max_iter, "max_iter", minimum=1)
         check_choice("init", self.init, self.INITS)
+        if self.mu_noise is not None:
+            check_positive("mu_noise", self.mu_noise, strict=False)
 
     def solve(self, W, R, K, prior, progress=None):
         return solve_admm(W, R, K, prior, self, progress)
@@ -312,7 +322,15 @@ def solve_admm(W, R, K, prior, settings, progress=None):
     returned in W's units (``theta`` and ``history`` stay in the ADMM's units;
     ``params["admm_scale"]`` is s)."""
     s = normalization_scale(W)
+    noise_rel = None
+    if settings.mu_noise is not None:
+        Wc = check_measurements(W)
+        rms = float(np.sqrt(np.mean(Wc ** 2)))
+        noise_rel = noise_level(Wc, K) / rms if rms > 0 else 0.0
+        settings = dataclasses.replace(settings, mu=max(settings.mu,
+                                                        settings.mu_noise * noise_rel ** 2))
     res = admm_iterations(W / s, R, K, prior, settings, progress)
+    res.params["noise_rel"] = noise_rel
     res.shapes, res.X_init = res.shapes * s, res.X_init * s
     res.X_init_singular_values = res.X_init_singular_values * s
     res.params["admm_scale"] = s
