@@ -197,7 +197,7 @@ def test_a_new_solver_is_one_module(seq):
         uses_prior: ClassVar[bool] = False
         scale: float = 1.0
 
-        def solve(self, W, R, K, prior, progress=None):
+        def solve(self, W, R, K, prior, progress=None, observed=None):
             base = PseudoInverseSettings().solve(W, R, K)
             return dataclasses.replace(base, shapes=self.scale * base.shapes, solver="toy")
 

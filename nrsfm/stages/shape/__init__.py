@@ -93,7 +93,7 @@ def solver_settings(name, options=None):
     return cls(**options)
 
 
-def solve_shape(W, R, K, settings=None, progress=None):
+def solve_shape(W, R, K, settings=None, progress=None, observed=None):
     """Run the shape stage.
 
     Parameters
@@ -105,6 +105,10 @@ def solve_shape(W, R, K, settings=None, progress=None):
     settings : ShapeSettings, optional
         Prior and solver settings; default ``ShapeSettings()`` (organic, bilinear).
     progress : callable(str) or None
+    observed : (F, P) bool ndarray, optional
+        Fit the data term on these entries only (W still finite elsewhere, e.g. completed).
+        Only a solver with ``masked = True`` (the ADMM) takes a partial mask; the others
+        raise a ValueError rather than ignore it.
 
     Returns
     -------
@@ -113,7 +117,7 @@ def solve_shape(W, R, K, settings=None, progress=None):
     settings = ShapeSettings() if settings is None else settings
     if not isinstance(settings, ShapeSettings):
         raise ValueError(f"settings must be a ShapeSettings; got {settings!r}")
-    return settings.solver.solve(W, R, K, settings.prior, progress)
+    return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed)
 
 
 def solve_shapes(W, R, K, prior=None, solver="bilinear", progress=None, **options):

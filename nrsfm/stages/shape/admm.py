@@ -78,6 +78,7 @@ class AdmmSettings(SolverSettings):
     """
 
     name: ClassVar[str] = "admm"
+    masked: ClassVar[bool] = True
     INITS: ClassVar[tuple] = ("rank_k", "full")
     N: Optional[int] = None
     mu: float = 1.0
@@ -107,8 +108,8 @@ class AdmmSettings(SolverSettings):
         if self.mu_noise is not None:
             check_positive("mu_noise", self.mu_noise, strict=False)
 
-    def solve(self, W, R, K, prior, progress=None):
-        return solve_admm(W, R, K, prior, self, progress)
+    def solve(self, W, R, K, prior, progress=None, observed=None):
+        return solve_admm(W, R, K, prior, self, progress, self.check_observed(observed, W))
 
 
 def normalization_scale(W):
@@ -249,7 +250,7 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
 # ADMM (Eq. 10-14)
 # --------------------------------------------------------------------------------------
 
-def admm_iterations(W, R, K, prior, settings, progress=None):
+def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
     """Low-rank shape by ADMM on Eq. (10) with the PSVT X# step (paper Sec. 3.2).
 
     Parameters
@@ -266,6 +267,10 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
     settings : AdmmSettings
     progress : callable(str) or None
         Called with a line every 100 iterations and at the end.
+    observed : (F, P) bool ndarray, optional
+        The data term on these entries only (a masked Eq. 10): an unobserved point of a
+        frame follows the low-rank variable alone in the X step. W must still be finite
+        there (a completed W: X_init and the weights come from it).
 
     Returns
     -------
@@ -284,7 +289,8 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
     * X step, per frame in closed form (Eq. 13):
       ``X_f = (R_f'R_f + rho I)^-1 (R_f'W_f + rho Z_f)``. For orthonormal rows,
       ``R_f'R_f`` is the projector onto the image plane, and the inverse reduces to
-      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames).
+      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames); with
+      ``observed``, the correction only on the observed points (``X_fp = Z_fp`` elsewhere).
     * X# step (Eq. 14 and the PSVT operator, Eq. 16-17):
       ``X# = P_{N, mu theta / rho}[Phi(X) - Y / rho]``.
     * ``Y += rho (X# - Phi(X))``; ``rho = min(rho_max, lam rho)``.
@@ -304,7 +310,8 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
     X_init = Rf.transpose(0, 2, 1) @ Wf             # pinv(R_f) = R_f' for orthonormal rows
     sigma = np.linalg.svd(phi(X_init), compute_uv=False)
     theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
-    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say)
+    mask = None if observed is None else np.asarray(observed, float)[:, None, :]
+    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask)
     resid = hist["residual"][-1]
     say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
         f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
@@ -316,11 +323,11 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
                        optimality=resid, optimality_kind="residual", params=params)
 
 
-def solve_admm(W, R, K, prior, settings, progress=None):
+def solve_admm(W, R, K, prior, settings, progress=None, observed=None):
     """The shape stage's ADMM: :func:`admm_iterations` on ``W / s``,
     ``s = normalization_scale(W)``, with ``shapes``, ``X_init`` and its singular values
     returned in W's units (``theta`` and ``history`` stay in the ADMM's units;
-    ``params["admm_scale"]`` is s)."""
+    ``params["admm_scale"]`` is s). ``observed``: see :func:`admm_iterations`."""
     s = normalization_scale(W)
     noise_rel = None
     if settings.mu_noise is not None:
@@ -329,7 +336,7 @@ def solve_admm(W, R, K, prior, settings, progress=None):
         noise_rel = noise_level(Wc, K) / rms if rms > 0 else 0.0
         settings = dataclasses.replace(settings, mu=max(settings.mu,
                                                         settings.mu_noise * noise_rel ** 2))
-    res = admm_iterations(W / s, R, K, prior, settings, progress)
+    res = admm_iterations(W / s, R, K, prior, settings, progress, observed)
     res.params["noise_rel"] = noise_rel
     res.shapes, res.X_init = res.shapes * s, res.X_init * s
     res.X_init_singular_values = res.X_init_singular_values * s
@@ -352,8 +359,9 @@ def _admm_weights(sigma, prior, N, settings):
     return theta, reg_w, xi
 
 
-def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
-    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`).
+def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask=None):
+    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`); ``mask``
+    (F, 1, P) of 0/1, or None, leaves the unobserved points out of the data term.
 
     Returns (X, history of arrays, iterations, converged)."""
     F, _, P = Wf.shape
@@ -368,7 +376,8 @@ def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
     for n_iter in range(1, st.max_iter + 1):
         # X step (Eq. 13), closed form per frame, vectorised.
         Z = phi_inv(Xs + Y / rho, P)
-        X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
+        E = Wf - Rf @ Z if mask is None else mask * (Wf - Rf @ Z)
+        X = Z + Rt @ E / (1.0 + rho)
         # X# step (Eq. 14, 17): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho.
         U, s, Vt = np.linalg.svd(phi(X) - Y / rho, full_matrices=False)
         s_new = _threshold(s, N, reg_w / rho)
@@ -377,7 +386,8 @@ def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
         D = Xs - phi(X)
         Y += rho * D
         resid = float(np.abs(D).max())
-        data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
+        E = Wf - Rf @ X if mask is None else mask * (Wf - Rf @ X)
+        data = 0.5 * float(np.sum(E ** 2))
         hist["cost"].append(data + float(reg_w @ s_new))
         hist["data_term"].append(data)
         hist["residual"].append(resid)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import numpy as np
+
 from ...validation import check_choice
 
 __all__ = ["PRIORS", "SOLVERS", "SolverSettings", "check_prior"]
@@ -34,13 +36,15 @@ def check_prior(prior):
 class SolverSettings:
     """Base of the shape solvers' settings.
 
-    A subclass sets the class attributes ``name`` (its registered name) and ``uses_prior``
-    (False for the solvers that take no prior: their :class:`ShapeSettings` prior is None),
-    and implements ``solve``. Defining the subclass registers it in :data:`SOLVERS`.
+    A subclass sets the class attributes ``name`` (its registered name), ``uses_prior``
+    (False for the solvers that take no prior: their :class:`ShapeSettings` prior is None)
+    and ``masked`` (True for a solver whose data term can leave out unobserved entries), and
+    implements ``solve``. Defining the subclass registers it in :data:`SOLVERS`.
     """
 
     name: ClassVar[str] = ""
     uses_prior: ClassVar[bool] = True
+    masked: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -54,9 +58,29 @@ class SolverSettings:
                              f"({old.__module__}.{old.__qualname__})")
         SOLVERS[name] = cls
 
-    def solve(self, W, R, K, prior, progress=None):
+    def solve(self, W, R, K, prior, progress=None, observed=None):
         """Solve the shape stage for row-centred W (2F, P), cameras R (F, 2 or 3, 3) and K
         bases, with ``prior`` one of :data:`PRIORS` (None for a solver with
-        ``uses_prior = False``) and ``progress`` a callable(str) or None; returns a
+        ``uses_prior = False``), ``progress`` a callable(str) or None and ``observed``
+        (F, P) bool or None (the data term on the observed entries only, for a solver with
+        ``masked = True``; see :func:`check_observed`); returns a
         :class:`nrsfm.stages.shape.ShapeResult` (:func:`nrsfm.stages.shape.solve_shape`)."""
         raise NotImplementedError(f"{type(self).__name__} does not implement solve")
+
+    def check_observed(self, observed, W):
+        """``observed`` as a (F, P) bool array, or None when every entry is observed;
+        ValueError when this solver has no masked data term and some entry is not."""
+        if observed is None:
+            return None
+        obs = np.asarray(observed, bool)
+        F, P = W.shape[0] // 2, W.shape[1]
+        if obs.shape != (F, P):
+            raise ValueError(f"observed must have shape (F, P) = ({F}, {P}); got {obs.shape}")
+        if obs.all():
+            return None
+        if not self.masked:
+            raise ValueError(f"the {self.name} shape solver has no masked data term; "
+                             f"{int((~obs).sum())} (frame, point) entries are not observed "
+                             f"(solvers with one: "
+                             f"{[n for n, c in SOLVERS.items() if c.masked]})")
+        return obs

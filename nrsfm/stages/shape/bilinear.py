@@ -109,7 +109,8 @@ class BilinearSettings(SolverSettings):
         check_choice("init", self.init, self.INITS)
         check_integer(self.max_iter, "max_iter", minimum=0)
 
-    def solve(self, W, R, K, prior, progress=None):
+    def solve(self, W, R, K, prior, progress=None, observed=None):
+        self.check_observed(observed, W)
         return solve_bilinear(W, R, K, prior, self, progress)
 
 
@@ -131,7 +132,8 @@ class ClosedFormSettings(SolverSettings):
     def __post_init__(self):
         check_positive("gtol", self.gtol, strict=False)
 
-    def solve(self, W, R, K, prior=None, progress=None):
+    def solve(self, W, R, K, prior=None, progress=None, observed=None):
+        self.check_observed(observed, W)
         return solve_closed_form(W, R, K, self, progress)
 
 

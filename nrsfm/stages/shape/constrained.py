@@ -111,7 +111,8 @@ class ConstrainedSettings(SolverSettings):
         if self.rank is not None:
             check_integer(self.rank, "rank", minimum=1)
 
-    def solve(self, W, R, K, prior, progress=None):
+    def solve(self, W, R, K, prior, progress=None, observed=None):
+        self.check_observed(observed, W)
         return solve_constrained(W, R, K, prior, self, progress)
 
 

@@ -25,7 +25,8 @@ class PseudoInverseSettings(SolverSettings):
     name: ClassVar[str] = "pseudo_inverse"
     uses_prior: ClassVar[bool] = False
 
-    def solve(self, W, R, K, prior=None, progress=None):
+    def solve(self, W, R, K, prior=None, progress=None, observed=None):
+        self.check_observed(observed, W)
         return solve_pseudo_inverse(W, R, K)
 
 
