@@ -31,11 +31,12 @@ BAD_E3D = 0.1
 
 def flag_names(diagnostics):
     """Short names of the flags raised (the signal each one is about)."""
-    keys = {"move": "depth", "rank": "rank", "Dai's cost": "cost", "reached by only": "hits",
-            "passed the filter": "filter", "depth sign": "signs", "viewing": "spread",
-            "transposed": "transposed", "ill-conditioned": "condition"}
-    return sorted({name for f in diagnostics.flags for k, name in keys.items() if k in f}
-                  ) or (["other"] if diagnostics.flags else [])
+    keys = {"W-depth-undetermined": "depth", "W-rank-deficient": "rank",
+            "W-triplet-bad-minimum": "cost", "W-triplet-unconfirmed": "hits",
+            "W-samples-disagree": "filter", "W-camera-jumps": "signs",
+            "W-static-camera": "spread", "W-transposed": "transposed",
+            "W-ill-conditioned": "condition"}      # ids of docs/warnings.md
+    return sorted({keys.get(f.split(":", 1)[0], "other") for f in diagnostics.flags})
 
 
 def run_row(seq):

@@ -3,7 +3,9 @@
 ``nrsfm.reconstruct`` attaches a :class:`Diagnostics` to every result
 (``Reconstruction.diagnostics``) and issues one :class:`NRSfMWarning` when a signal crosses
 its threshold. The signals are measured from W and the rotation stage only (never from
-ground truth). Thresholds and the measurements behind them: ``docs/rotation_stage.md``.
+ground truth). Thresholds and the measurements behind them: ``docs/rotation_stage.md``;
+every flag and note, its message and what to do: ``docs/warnings.md``
+(:mod:`nrsfm.warnings_catalog`).
 
 Signals (name: meaning; flagged when)
 -------------------------------------
@@ -53,6 +55,7 @@ import numpy as np
 
 from .noise import noise_from_singular_values
 from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum
+from .warnings_catalog import UNRELIABLE, text
 
 __all__ = ["NRSfMWarning", "Diagnostics", "THRESHOLDS", "RANK_RTOL", "RANK_GAP_MIN",
            "CONDITION_MAX", "COST_RATIO_MAX", "CAMERA_SPREAD_MIN_DEG", "KEPT_MIN", "SIGN_FRACTION_MAX",
@@ -99,7 +102,10 @@ THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank=
 
 
 class NRSfMWarning(UserWarning):
-    """A reconstruction whose quality signals say it is unreliable (see ``diagnostics``)."""
+    """A reconstruction whose quality signals say it is unreliable (see ``diagnostics``).
+
+    Its message is ``"unreliable reconstruction: "`` and the run's flags, each starting with
+    its id (``W-...``, ``docs/warnings.md``), separated by ``"; "``."""
 
 
 @dataclass
@@ -111,11 +117,13 @@ class Diagnostics:
     signals : dict
         Signal name -> measured value (see the module docstring).
     flags : list of str
-        One sentence per signal that crossed its threshold, naming the value, the
-        threshold and the likely cause. Empty for a run with nothing to report.
+        One message per signal that crossed its threshold, starting with its id
+        (``W-...``, ``docs/warnings.md``): what is wrong (with the measured value and the
+        threshold), what it means for the result and what to try. Empty for a run with
+        nothing to report.
     notes : list of str
-        Observations that are not failures by themselves (a rank-deficient W whose best
-        triplet is confirmed and fits at the noise level).
+        Observations that need no action (ids ``N-...``, ``docs/warnings.md``; a
+        rank-deficient W whose best triplet is confirmed and fits at the noise level).
     thresholds : dict
         Signal name -> the rule that flags it.
     """
@@ -142,7 +150,7 @@ class Diagnostics:
     @property
     def message(self):
         """The one warning a flagged run raises (:class:`NRSfMWarning`), or None."""
-        return "unreliable reconstruction: " + "; ".join(self.flags) if self.flags else None
+        return UNRELIABLE + "; ".join(self.flags) if self.flags else None
 
 
 # ----------------------------------------------------------------------------- signals
@@ -217,22 +225,17 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
     sig["numerical_rank"] = rank
     rank_msg = None
     if rank < r:
-        rank_msg = (f"W is numerically rank-deficient: rank {rank} < 3K = {r} (singular "
-                     f"values below {RANK_RTOL:g} s_1); a planar object, a static camera "
-                     f"(rank <= 2K) or K too large; lower K")
+        rank_msg = text("W-rank-deficient", rank=rank, K=K, r=r, rtol=RANK_RTOL)
     nxt = s[r] if s.size > r else 0.0
     gap = float(s[r - 1] / nxt) if nxt > 0 else np.inf
     sig["rank_gap"] = gap
     notes = []
     if rank >= r and gap < RANK_GAP_MIN:
-        notes.append(f"no gap in the singular values of W at 3K = {r}: s_3K / s_3K+1 = "
-                     f"{gap:.4g} < {RANK_GAP_MIN} (the last components of the rank-3K model are at "
-                     f"the noise level)")
+        notes.append(text("N-no-rank-gap", r=r, gap=gap, gap_min=RANK_GAP_MIN))
     cond = float(s[0] / s[r - 1]) if s[r - 1] > 0 else np.inf
     sig["condition"] = cond
     if rank >= r and cond > CONDITION_MAX:
-        flags.append(f"ill-conditioned factorisation: s_1 / s_3K = {cond:.3g} > "
-                     f"{CONDITION_MAX:g}")
+        flags.append(text("W-ill-conditioned", cond=cond, cond_max=CONDITION_MAX))
     sigma = noise_from_singular_values(s, W.shape, K)
     rms = np.sqrt(np.sum(s ** 2) / (twoF * P))
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
@@ -248,12 +251,8 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0):
             flags.insert(0, rank_msg)
         else:
             k_eff = rotation_stage.info.get("effective_K")
-            if k_eff is not None:
-                rank_msg = (f"W has numerical rank {rank} < 3K = {r}: the rotations were "
-                            f"solved in the determined {rank}-dimensional subspace of the "
-                            f"motion factor ({k_eff} corrective triplet(s)); the shapes use "
-                            f"K = {K}")
-            notes.append(rank_msg)
+            notes.append(text("N-rank-deficient", rank=rank, r=r) if k_eff is None else
+                         text("N-rank-deficient-subspace", rank=rank, r=r, k_eff=k_eff, K=K))
     return Diagnostics(signals=sig, flags=flags, notes=notes)
 
 
@@ -272,15 +271,10 @@ def _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes):
     lower, other = lower_minimum(M_hat, K, cost, seed)
     sig["triplet_cost_other_starts"] = other
     if lower:
-        flags.append(f"Dai's cost of the best corrective triplet {cost:.3g} is {ratio:.3g} "
-                     f"x what the noise level of W predicts ({pred:.3g}; flagged above "
-                     f"{COST_RATIO_MAX}) and other starts reach {other:.3g}: the triplet "
-                     f"search ended in a bad minimum")
+        flags.append(text("W-triplet-bad-minimum", cost=cost, ratio=ratio, pred=pred,
+                          ratio_max=COST_RATIO_MAX, other=other))
     else:
-        notes.append(f"Dai's cost of the best corrective triplet {cost:.3g} is {ratio:.3g} "
-                     f"x what independent noise on W predicts ({pred:.3g}) and no other "
-                     f"start does better: the rank-{3 * K} model does not fit W exactly "
-                     f"(real shapes are not of rank K), not a failed search")
+        notes.append(text("N-model-misfit", cost=cost, ratio=ratio, pred=pred, r=3 * K))
     return cost, ratio
 
 
@@ -293,12 +287,9 @@ def _depth_signal(info, sig, flags):
     sig["depth_sensitivity"] = depth["ratio"]
     if depth["ratio"] > DEPTH_SENSITIVITY_MAX and \
             depth["shape_change"] > DEPTH_SHAPE_CHANGE_MIN:
-        flags.append(f"the shapes move {depth['ratio']:.3g} x as much as the rotations "
-                     f"between the two rotation estimates (shapes "
-                     f"{depth['shape_change']:.3g}, rotations "
-                     f"{depth['rotation_change']:.3g}; flagged above "
-                     f"{DEPTH_SENSITIVITY_MAX}): the camera motion does not determine the "
-                     f"depth of the deformation")
+        flags.append(text("W-depth-undetermined", rot=depth["rotation_change"],
+                          shape=depth["shape_change"], ratio=depth["ratio"],
+                          ratio_max=DEPTH_SENSITIVITY_MAX))
 
 
 def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, sig, flags,
@@ -315,19 +306,17 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
         sig["triplet_hits"] = int(search["hits"])
         sig["triplet_starts"] = int(search["n_starts"])
         if search["hits"] < 2:
-            flags.append(f"the best corrective triplet was reached by only "
-                         f"{search['hits']} of {search['n_starts']} starts")
+            flags.append(text("W-triplet-unconfirmed", hits=search["hits"],
+                              n_starts=search["n_starts"]))
     kept = float(np.mean(rotation_stage.kept))
     sig["kept_fraction"] = kept
     if rotation_stage.kept.shape[0] > 1 and kept < KEPT_MIN:
-        flags.append(f"only {kept:.0%} of the rotation samples passed the filter "
-                     f"(flagged below {KEPT_MIN:.0%}): the K triplets disagree")
+        flags.append(text("W-samples-disagree", kept=kept, kept_min=KEPT_MIN))
     sfrac = float(np.mean(rotation_stage.sign_from_smoothness))
     sig["smoothness_sign_fraction"] = sfrac
     if sfrac > SIGN_FRACTION_MAX:
-        flags.append(f"{int(rotation_stage.sign_from_smoothness.sum())} of {F} frames "
-                     f"had their depth sign set by motion smoothness (flagged above "
-                     f"{SIGN_FRACTION_MAX:.0%}): the cameras jump between frames")
+        flags.append(text("W-camera-jumps", n=int(rotation_stage.sign_from_smoothness.sum()),
+                          F=F, frac_max=SIGN_FRACTION_MAX))
     R = rotation_stage.rotations
     d = R[:, 2] * np.where(np.einsum("fi,i->f", R[:, 2], R[0, 2]) < 0, -1.0, 1.0)[:, None]
     mean_d = d.mean(axis=0)
@@ -336,9 +325,7 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
     spread = float(np.max(ang))
     sig["camera_spread_deg"] = spread
     if spread < CAMERA_SPREAD_MIN_DEG:
-        flags.append(f"the estimated viewing directions stay within {spread:.2g} degrees "
-                     f"of their mean (flagged below {CAMERA_SPREAD_MIN_DEG} degrees): a "
-                     f"(nearly) static camera leaves depth unobserved")
+        flags.append(text("W-static-camera", spread=spread, spread_min=CAMERA_SPREAD_MIN_DEG))
     _depth_signal(info, sig, flags)
     sig["looks_transposed"] = False
     if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
@@ -348,7 +335,5 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
         sig["transposed_cost_per_frame"] = there
         if there < TRANSPOSE_RATIO * here:
             sig["looks_transposed"] = True
-            flags.append(f"W looks transposed: read as ({P}, {twoF}) = "
-                         f"({P // 2} frames, {twoF} points) it fits orthographic "
-                         f"cameras far better (Dai's cost per frame {there:.3g} against "
-                         f"{here:.3g}); pass W.T if W is (P, 2F)")
+            flags.append(text("W-transposed", P=P, twoF=twoF, F_t=P // 2, there=there,
+                              here=here))

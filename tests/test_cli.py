@@ -111,7 +111,9 @@ def test_ignored_arrays_give_a_one_line_warning(tmp_path, seq):
     proc = nrsfm("run", path, "--quiet", "--method", "pseudo_inverse", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.splitlines() == [
-        f"nrsfm: warning: {path}: ignoring arrays ['colour']"]
+        f"nrsfm: warning: W-ignored-arrays: nrsfm run ignores arrays of {path} that it does "
+        f"not read: ['colour'] (it reads W, K, shapes, rotations, edges); rename one if it "
+        f"was meant as input"]
 
 
 def test_float_integral_K_in_file_is_accepted(tmp_path, seq):

@@ -211,6 +211,6 @@ def test_reconstruct_warns_when_the_completion_stops_at_its_cap():
     seq = dt.make_synthetic(F=40, P=30, K=1, seed=4)
     Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="tracking")
     s = Settings(measurement=MeasurementSettings(completion="soft_impute", lags=(0,)))
-    with pytest.warns(RuntimeWarning, match=r"iteration cap \(500\) before converging"):
+    with pytest.warns(RuntimeWarning, match=r"^W-completion-cap: .* iteration cap \(500\) before converging"):
         r = nrsfm.reconstruct(Wm, 1, settings=s)
     assert not r.completion.converged and r.completion.n_iter == 500

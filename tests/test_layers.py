@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: that names it
 LAYERS = [
     ("shared", ["nrsfm.geometry", "nrsfm.validation", "nrsfm.io", "nrsfm.paths",
-                "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.metrics"]),
+                "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.metrics",
+                "nrsfm.warnings_catalog"]),
     ("stages", ["nrsfm.stages"]),
     ("diagnostics", ["nrsfm.diagnostics"]),
     ("settings", ["nrsfm.settings"]),

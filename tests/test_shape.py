@@ -341,7 +341,7 @@ def test_non_unique_rank_k_fit_warns_and_lets_the_prior_decide():
     """Rank-1 data fitted with K = 2: the rank-2 fit is not unique (closed-form nullspace
     gap at rounding level); the solver warns and raises mu to min_mu ||W||_F."""
     seq = data_tools.make_synthetic(F=40, P=12, K=1, motion="smooth", seed=1)
-    with pytest.warns(RuntimeWarning, match="not unique"):
+    with pytest.warns(RuntimeWarning, match="^W-shape-not-unique: "):
         res = optimize_shapes_bilinear(seq.W, seq.rotations, 2)
     assert res.params["nullspace_gap"] < 1e-12
     assert res.mu >= 1e-5 * np.linalg.norm(seq.W) * (1 - 1e-12)

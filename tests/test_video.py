@@ -369,7 +369,7 @@ def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
     assert (colors[np.flatnonzero(vr.used)[und]] == UNDETERMINED_COLOR).all()
 
 
-CAP_WARNING = "the completion of W stopped at its iteration cap"
+CAP_WARNING = "W-completion-cap: "
 
 
 def _reconstruct_tracks_warning_iff_capped(W, K, **kw):

@@ -136,7 +136,10 @@ def print_report(result, seq=None):
     ground truth, the errors; returns the errors (a dict, empty without ground truth)."""
     print(result.summary())
     errs = {}
-    for flag in getattr(getattr(result, "diagnostics", None), "flags", []):
+    diagnostics = getattr(result, "diagnostics", None)
+    for note in getattr(diagnostics, "notes", []):
+        print(f"  note: {note}")          # no action needed (docs/warnings.md)
+    for flag in getattr(diagnostics, "flags", []):
         print(f"  WARNING: {flag}")       # the NRSfMWarning, printed once (see main)
     if seq is not None and seq.shapes is not None:
         errs = result.errors(seq.shapes, seq.rotations)

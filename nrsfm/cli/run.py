@@ -12,6 +12,7 @@ from ..validation import check_K, check_measurements, check_rotations, check_sha
 from ..io import load_npz, save_npz
 from ..pipeline import reconstruct
 from ..sequence import Sequence
+from ..warnings_catalog import text
 from .common import UsageError, one_line, output_path, positive_int, print_report, rrd_path
 from .reconstruct import add_common_options, save_rrd
 
@@ -121,7 +122,8 @@ def _read_input(inp, K_arg, given_rotations):
         raise UsageError(f"--given-rotations: {inp} has no array 'rotations'")
     ignored = sorted(set(data) - set(INPUT_KEYS))
     if ignored:
-        warnings.warn(f"{inp}: ignoring arrays {ignored}", stacklevel=1)
+        warnings.warn(text("W-ignored-arrays", inp=inp, ignored=ignored,
+                           keys=", ".join(INPUT_KEYS)), stacklevel=1)
     return W, K, truth
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
+from ...warnings_catalog import text
 from ..measurement import measure
 from .factorisation import complete_low_rank
 from .gain import MAX_GAIN, fill_gain
@@ -64,7 +65,8 @@ def complete(W, K, settings):
     Warns
     -----
     RuntimeWarning
-        When the completion stopped at its iteration cap before converging.
+        When the completion stopped at its iteration cap before converging
+        (``W-completion-cap``, ``docs/warnings.md``).
     """
     observed = observed_mask(W)
     lags = (choose_lags(observed, 3 * K) if settings.lags == "auto"
@@ -77,8 +79,7 @@ def complete(W, K, settings):
     else:
         result = complete_low_rank(W, 3 * K, observed, lags=lags)
     if not result.converged:
-        warnings.warn(f"the completion of W stopped at its iteration cap ({result.n_iter}) "
-                      f"before converging: the filled entries may be inaccurate",
-                      RuntimeWarning, stacklevel=3)
+        warnings.warn(text("W-completion-cap", n_iter=result.n_iter), RuntimeWarning,
+                      stacklevel=3)
     M_hat = measure(result.W, K).factorization.M_hat
     return dataclasses.replace(result, fill_gain=fill_gain(M_hat, result.observed))

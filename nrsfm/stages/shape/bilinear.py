@@ -20,7 +20,8 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   (measured; 1 would be the threshold that removes Gaussian noise of that level and is far
   too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the
   exact rank-K fit. If that fit is not unique (closed-form nullspace gap at rounding
-  level) a RuntimeWarning is issued and ``mu`` raised to ``min_mu ||W||_F``.
+  level) a RuntimeWarning is issued (``W-shape-not-unique``, ``docs/warnings.md``) and
+  ``mu`` raised to ``min_mu ||W||_F``.
 * Scale-free: W is divided by ``||W||_F`` inside and ``mu`` is proportional to the scale
   of W, so the minimiser for ``c W`` is ``c`` times that for ``W``.
 * Solver: variable projection. C is eliminated in closed form (one 3r x 3r normal system
@@ -48,6 +49,7 @@ import scipy.optimize
 
 from ...noise import noise_from_singular_values
 from ...validation import check_choice, check_integer, check_positive
+from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
 from .closed_form import NULLSPACE_GAP_MIN, c_step, nullspace_coefficients
 from .common import ShapeResult, check_shape_inputs
@@ -295,11 +297,10 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
         B0, ev = nullspace_coefficients(Uw, sw, Rf, K)
         gap = float(ev[K]) if ev.size > K else float("nan")
         if not gap > NULLSPACE_GAP_MIN:
-            what = (f"the prior decides: mu raised to at least min_mu = {st.min_mu:g} "
-                    f"||W||_F" if st.mu is None else "the result is one of many")
-            warnings.warn(f"the rank-{K} fit of W with these cameras is not unique "
-                          f"(closed-form nullspace gap {gap:.1e}); {what}", RuntimeWarning,
-                          stacklevel=4)
+            message = (text("W-shape-not-unique", gap=gap, K=K, min_mu=st.min_mu)
+                       if st.mu is None else
+                       text("W-shape-not-unique-mu-given", gap=gap, K=K, mu=st.mu))
+            warnings.warn(message, RuntimeWarning, stacklevel=4)
             if st.mu is None:
                 mu_n = max(mu_n, st.min_mu)
     return mu_n, noise, B0, gap
