@@ -209,8 +209,8 @@ CATALOG = {
         "W and these cameras do not determine the shapes on their own (closed-form nullspace "
         "gap {gap:.1e}): many rank-{K} shapes fit W equally well and the prior picks one, its "
         "weight raised to min_mu = {min_mu:g} ||W||_F; where W has fewer than 3K "
-        "directions this is expected and the prior's pick was accurate on shark; if the "
-        "diagnostics warn too, try a lower K",
+        "directions this is expected and the result is usually good; if the diagnostics "
+        "warn too, try a lower K",
         "the bilinear shape solver with `mu` unset (the default), the closed-form start "
         "(`init=\"closed_form\"`, rank K): the closed form's (K+1)-th eigenvalue relative to "
         "its largest is at most `NULLSPACE_GAP_MIN` = {NULLSPACE_GAP_MIN:g}",
