@@ -229,6 +229,10 @@ def test_missing_tracks_plan_runs_and_table():
     columns, (line,), note = missing_track_table([row])
     assert columns == COLUMNS and len(line) == len(COLUMNS) and "seed=1" in note
     assert line[:3] == ["synthetic-3-40-24-2", "late", row["missing"]]
+    fake = dict(row, lost=[2, 5, 9], flagged=[5, 9], point_fill=[0.01, 0.3, 0.12],
+                point_fill_rigid=[0.02, 0.04, 0.2])
+    (line,) = missing_track_table([fake])[1]
+    assert [line[i] for i in (11, 13, 16)] == ["0.12-0.30", "0.01-0.01", "0.02-0.20"]
 
 
 def test_choose_K_on_synthetic_sequences():

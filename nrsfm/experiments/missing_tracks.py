@@ -31,7 +31,8 @@ TITLE = "Lost tracks: where the error is, the fills and their flag (issue 24)"
 #: the table's columns (:func:`missing_track_table`)
 COLUMNS = ["sequence", "pattern", "missing", "e3d complete", "e3d missing", "ratio",
            "e3d seen, complete", "e3d seen, missing", "lost points", "flagged",
-           "fill flagged", "fill unflagged", "fill lost", "fill rigid-neighbour",
+           "fill flagged", "range", "fill unflagged", "range", "fill lost",
+           "fill rigid-neighbour", "range",
            "fill > .15 unflagged", "fill < .05 flagged", "s total"]
 
 _FILL_BAD, _FILL_GOOD = 0.15, 0.05          # issue 24's acceptance 2
@@ -62,6 +63,20 @@ def missing_track_tasks(make, sequences, patterns, fraction, drop_seed):
 
 def _mean(values):
     return float(np.mean(values)) if len(values) else None
+
+
+def _range(values):
+    """``"min-max"`` of some fill errors (two decimals), None for none."""
+    return f"{min(values):.2f}-{max(values):.2f}" if len(values) else None
+
+
+def _ranges(row):
+    """The fill ranges of a row: flagged, unflagged, rigid-neighbour."""
+    flagged = set(row["flagged"])
+    fills = list(zip(row["lost"], row["point_fill"]))
+    return (_range([x for p, x in fills if p in flagged]),
+            _range([x for p, x in fills if p not in flagged]),
+            _range(row["point_fill_rigid"]))
 
 
 def track_row(complete, missing, truth, observed):
@@ -106,11 +121,12 @@ def missing_track_table(rows):
     lines = []
     for r in rows:
         ratio = (r["e3d"] / r["e3d_complete"]) if r.get("e3d_complete") else None
+        flagged, unflagged, rigid = _ranges(r)
         lines.append([r["sequence"], r["pattern"], r["missing"], r.get("e3d_complete"),
                       r.get("e3d"), ratio, r["e3d_seen_complete"], r["e3d_seen_missing"],
-                      len(r["lost"]), len(r["flagged"]), r["fill_flagged"],
-                      r["fill_unflagged"], r["fill_lost"], r["fill_rigid"],
-                      r["unflagged_bad"], r["flagged_good"], r["t_total"]])
+                      len(r["lost"]), len(r["flagged"]), r["fill_flagged"], flagged,
+                      r["fill_unflagged"], unflagged, r["fill_lost"], r["fill_rigid"],
+                      rigid, r["unflagged_bad"], r["flagged_good"], r["t_total"]])
     fraction = rows[0]["fraction"] if rows else None
     seed = rows[0]["drop_seed"] if rows else None
     note = (f"data_tools.drop_tracks(W, {fraction}, seed={seed}, pattern=...), organic "
@@ -119,7 +135,8 @@ def missing_track_table(rows):
             "points). lost points: missing in at least one frame; flagged: of them "
             "undetermined (fill gain above MAX_GAIN). fill: a lost point's mean error over "
             "its unseen frames after e3d's per-frame similarity alignment, RMS shape "
-            "radius = 1, mean over the points (flagged, unflagged, all lost); "
+            "radius = 1, mean over the points (flagged, unflagged, all lost) and range "
+            "over them; "
             "rigid-neighbour: each lost point carried rigidly with its 4 nearest visible "
             "neighbours from the frame it was last seen in, on the pipeline's shapes "
             "(nrsfm.experiments.fill.rigid_neighbour_fill). Last two: counts of lost "
