@@ -128,6 +128,54 @@ def test_noise_and_missing_data_generators():
         dt.drop_tracks(W, 1.0)
 
 
+def _runs(column):
+    """Number of runs of missing frames in one (F,) observed column."""
+    gaps = ~column
+    return int(gaps[0]) + int(np.sum(gaps[1:] & ~gaps[:-1]))
+
+
+@pytest.mark.parametrize("pattern", [p for p in dt.noise.PATTERNS
+                                     if p not in ("uniform", "tracking")])
+def test_track_patterns_honour_the_fraction_their_shape_and_the_seed(pattern):
+    """lost / late / block: exactly round(fraction P) tracks hit, each with one gap of the
+    pattern's shape; the same seed the same mask, another seed another."""
+    F, P = 50, 41
+    W = np.random.default_rng(0).standard_normal((2 * F, P))
+    Wm, mask = dt.drop_tracks(W, 0.3, seed=31, pattern=pattern)
+    hit = ~mask.all(axis=0)
+    assert hit.sum() == round(0.3 * P) == 12
+    assert all(_runs(mask[:, p]) == 1 for p in np.flatnonzero(hit))
+    tenth = -(-F // 10)
+    if pattern == "lost":                        # seen in the first tenth, lost to the end
+        assert mask[:tenth].all() and not mask[-1, hit].any()
+    elif pattern == "late":                      # unseen at first, seen in the last tenth
+        assert mask[-tenth:].all() and not mask[0, hit].any()
+    else:                                        # gone for a block and back
+        assert mask[0].all() and mask[-1].all()
+        assert (~mask[:, hit]).sum(axis=0).min() >= tenth
+    np.testing.assert_array_equal(np.isnan(Wm), np.repeat(~mask, 2, axis=0))
+    np.testing.assert_array_equal(mask, dt.drop_tracks(W, 0.3, seed=31, pattern=pattern)[1])
+    assert not np.array_equal(mask, dt.drop_tracks(W, 0.3, seed=32, pattern=pattern)[1])
+    assert dt.drop_tracks(W, 0.0, seed=31, pattern=pattern)[1].all()
+
+
+def test_lost_pattern_is_about_fifteen_percent_of_the_entries():
+    """Issue 24's pattern: 30% of the tracks lost after the first tenth, ~15% of the
+    entries (0.3 x the mean lost share 0.45 = 0.135, plus the draw's spread)."""
+    W = np.zeros((2 * 300, 41))
+    _, mask = dt.drop_tracks(W, 0.3, seed=31, pattern="lost")
+    assert 0.10 < 1 - mask.mean() < 0.20
+
+
+def test_drop_tracks_names_bad_patterns_and_short_sequences():
+    W = np.zeros((4, 10))
+    with pytest.raises(ValueError, match=r"pattern must be one of \['uniform', 'tracking'"):
+        dt.drop_tracks(W, 0.3, pattern="lost-tracks")
+    with pytest.raises(ValueError, match="block pattern needs at least 3 frames"):
+        dt.drop_tracks(W, 0.3, pattern="block")
+    assert dt.drop_tracks(W, 0.3, pattern="uniform")[1].shape == (2, 10)
+
+
 def test_tracks_from_frames_follows_moving_dots():
     cv2 = pytest.importorskip("cv2")
     rng = np.random.default_rng(0)

@@ -152,6 +152,91 @@ def test_shape_table_rows_cells_and_ratio():
     assert lines[1][2:-2] == [None] * (len(COLUMNS) - 1)       # cells no task filled
 
 
+def _rigid_motion(F=20, P=12, seed=0):
+    """(F, 3, P) shapes of one rigid body turning and moving (QR of random matrices)."""
+    rng = np.random.default_rng(seed)
+    body = rng.standard_normal((3, P))
+    Q = np.linalg.qr(rng.standard_normal((F, 3, 3)))[0]
+    Q *= np.sign(np.linalg.det(Q))[:, None, None]            # proper rotations
+    return Q @ body + rng.standard_normal((F, 3, 1))
+
+
+def test_rigid_neighbour_fill_is_exact_on_a_rigid_body():
+    """A lost point of a rigid body is where its neighbours carry it; the fill leaves seen
+    entries alone and refuses a bad k."""
+    from nrsfm.experiments.fill import rigid_neighbour_fill
+
+    X = _rigid_motion()
+    observed = np.ones((20, 12), bool)
+    observed[8:, 3] = False                                   # lost to the end
+    observed[:5, 7] = False                                   # starts late
+    observed[10:14, [0, 1, 2]] = False                        # a block of three
+    wrong = np.where(observed[:, None, :], X, 100.0)          # what the fill must replace
+    filled = rigid_neighbour_fill(wrong, observed, k=4)
+    np.testing.assert_allclose(filled, X, atol=1e-9)
+    deformed = wrong.copy()
+    deformed[:, :, 5] += 1.0                                  # a neighbour that slides
+    assert np.abs(rigid_neighbour_fill(deformed, observed)[8:, :, 3] - X[8:, :, 3]).max() > 0.1
+    with pytest.raises(ValueError, match="k must be at least 1"):
+        rigid_neighbour_fill(X, observed, k=0)
+    with pytest.raises(ValueError, match="observed must have shape"):
+        rigid_neighbour_fill(X, observed[1:])
+
+
+def test_point_errors_and_seen_e3d_agree_with_e3d():
+    """A frame's e3d is the RMS of its points' errors (RMS radius 1); e3d on the seen points
+    is e3d when all are seen, and ignores what happens to the unseen ones."""
+    import nrsfm
+    from nrsfm.experiments.fill import e3d_seen, lost_point_means, point_errors
+
+    rng = np.random.default_rng(1)
+    gt = rng.standard_normal((6, 3, 10))
+    est = 2.0 * gt + 0.1 * rng.standard_normal(gt.shape)
+    err = point_errors(est, gt)
+    np.testing.assert_allclose(np.sqrt(np.mean(err ** 2, axis=1)),
+                               nrsfm.e3d(est, gt, per_frame=True), rtol=1e-12)
+    observed = np.ones((6, 10), bool)
+    assert e3d_seen(est, gt, observed) == pytest.approx(nrsfm.e3d(est, gt), rel=1e-12)
+    observed[2:, 4] = False
+    moved = est.copy()
+    moved[2:, :, 4] += 50.0
+    assert e3d_seen(moved, gt, observed) == pytest.approx(e3d_seen(est, gt, observed))
+    assert e3d_seen(moved, gt, observed) < 0.1 < nrsfm.e3d(moved, gt)
+    means = lost_point_means(err, observed)
+    assert np.isnan(means[0]) and means[4] == pytest.approx(err[2:, 4].mean())
+
+
+def test_missing_tracks_plan_runs_and_table():
+    """The lost-tracks tasks of the missing experiment: one per sequence and pattern (the
+    quick set: one), a bad pattern named, a row with the table's fields."""
+    from nrsfm.experiments.missing_tracks import COLUMNS, missing_track_table
+
+    quick = [t for t in build_plan(only=["missing"], sequences=["synthetic-1"],
+                                   quick=True)["missing"] if t.experiment == "missing_tracks"]
+    assert [t.params["pattern"] for t in quick] == ["lost"]
+    full = build_plan(only=["missing"], sequences=["drink", "pickup", "dance"])["missing"]
+    cells = {(t.params["sequence"], t.params["pattern"]) for t in full
+             if t.experiment == "missing_tracks"}
+    assert cells == {(n, p) for n in ("drink", "pickup")
+                     for p in ("uniform", "lost", "late", "block")}
+    with pytest.raises(ValueError, match="missing pattern must be one of"):
+        build_plan(only=["missing"], sequences=["synthetic-1"],
+                   overrides={"track_patterns": ("lost-to-the-end",)})
+    task = Task.make("missing_tracks", sequence="synthetic-3-40-24-2", pattern="late",
+                     fraction=0.3, drop_seed=1, seed=0, data=None)     # converges: no warning
+    (row,) = run_task(task)
+    assert len(row["lost"]) == 7 and set(row["flagged"]) <= set(row["lost"])
+    assert len(row["point_fill"]) == len(row["point_fill_rigid"]) == 7
+    assert row["e3d_seen_complete"] < 1e-6 < row["e3d"]
+    columns, (line,), note = missing_track_table([row])
+    assert columns == COLUMNS and len(line) == len(COLUMNS) and "seed=1" in note
+    assert line[:3] == ["synthetic-3-40-24-2", "late", row["missing"]]
+    fake = dict(row, lost=[2, 5, 9], flagged=[5, 9], point_fill=[0.01, 0.3, 0.12],
+                point_fill_rigid=[0.02, 0.04, 0.2])
+    (line,) = missing_track_table([fake])[1]
+    assert [line[i] for i in (11, 13, 16)] == ["0.12-0.30", "0.01-0.01", "0.02-0.20"]
+
+
 def test_choose_K_on_synthetic_sequences():
     for K in (1, 2, 3, 4):
         for noise in (0.0, 0.05):                    # Gavish-Donoho handles the noise
@@ -178,7 +263,8 @@ def test_benchmark_command_writes_tables_and_plots(tmp_path, capsys):
     assert rc == 0
     err = capsys.readouterr().err.splitlines()
     assert all(line.startswith(f"nrsfm: warning: {CAP_WARNING}") for line in err), err
-    for name in ("mocap.md", "mocap.csv", "missing.md", "missing_curve.png", "README.md"):
+    for name in ("mocap.md", "mocap.csv", "missing.md", "missing_curve.png",
+                 "missing_tracks.md", "README.md"):
         assert (out / name).is_file(), name
     text = (out / "mocap.md").read_text()
     assert "| synthetic-1 | 2 | organic |" in text

@@ -16,7 +16,8 @@ EXPERIMENTS = {
                          "ground-truth rotations",
     "noise": "Fig. 3a-b: noise on pickup, e_R and e3d, mean and std over runs",
     "missing": "Fig. 3c: 30% missing (uniform and tracking) on every sequence, and a "
-               "10-60% curve on pickup",
+               "10-60% curve on pickup; the lost-tracks table (issue 24: e3d of the seen "
+               "points, fill errors, the flag, a rigid-neighbour baseline) per pattern",
     "n_ablation": "Fig. 3d: the shape stage's N = 0..5",
     "k_sweep": "e3d as a function of K per sequence",
     "auto_k": "automatic K from W alone beside the paper's K",
@@ -34,6 +35,8 @@ _FULL = dict(methods=("organic", "organic-admm", "bmm", "wnn"),
              k_grid=(1, 2, 3, 4, 5, 6, 8, 10, 12, 14),
              k_span=None, ablation_sequences=None, sweep_sequences=None,
              missing_sequences=None,
+             track_patterns=("uniform", "lost", "late", "block"), track_fraction=0.3,
+             track_seed=31, track_sequences=("drink", "pickup", "yoga", "stretch"),
              noise_sequence="pickup", curve_sequence="pickup")
 
 _QUICK = dict(_FULL, methods=("organic", "bmm"), noise_methods=("organic", "bmm", "wnn"),
@@ -41,7 +44,8 @@ _QUICK = dict(_FULL, methods=("organic", "bmm"), noise_methods=("organic", "bmm"
               noise_runs=2, curve_fractions=(0.1, 0.3, 0.5), curve_methods=("organic",),
               missing_patterns=("uniform", "tracking"), k_span=(-4, -2, 0),
               ablation_sequences=("pickup",), sweep_sequences=("pickup",),
-              missing_sequences=("pickup",))
+              missing_sequences=("pickup",), track_patterns=("lost",),
+              track_sequences=("pickup",))
 
 
 def settings(quick=False):
@@ -89,6 +93,22 @@ def _checked(only, sequences, quick, overrides):
         raise ValueError(f"unknown setting(s) {bad}; expected some of {sorted(s)}")
     s.update(overrides or {})
     return only, seqs, s
+
+
+def _missing_tasks(mk, mocap, subset, s, one):
+    """The missing experiment's tasks: the complete-data baselines, each pattern at the
+    table's fraction, the curve on one sequence, the lost-tracks table's tasks."""
+    from .missing_tracks import missing_track_tasks
+
+    mseqs = subset("missing_sequences")
+    ts = [mocap(n, m) for n in mseqs for m in s["missing_methods"]]
+    ts += [mk("missing", sequence=n, method=m, pattern=pt,
+              fraction=float(s["missing_fraction"]))
+           for n in mseqs for pt in s["missing_patterns"] for m in s["missing_methods"]]
+    ts += [mk("missing", sequence=one, method=m, pattern="uniform", fraction=float(f))
+           for f in s["curve_fractions"] for m in s["curve_methods"]]
+    return ts + missing_track_tasks(mk, subset("track_sequences"), s["track_patterns"],
+                                    s["track_fraction"], s["track_seed"])
 
 
 def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overrides=None,
@@ -159,14 +179,7 @@ def build_plan(only=None, sequences=None, quick=False, data=None, seed=0, overri
                          for sg in s["noise_sigmas"] for m in s["noise_methods"]
                          for r in range(s["noise_runs"])]
     if "missing" in only:
-        mseqs = subset("missing_sequences")
-        ts = [mocap(n, m) for n in mseqs for m in s["missing_methods"]]
-        ts += [mk("missing", sequence=n, method=m, pattern=pt,
-                  fraction=float(s["missing_fraction"]))
-               for n in mseqs for pt in s["missing_patterns"] for m in s["missing_methods"]]
-        ts += [mk("missing", sequence=one, method=m, pattern="uniform", fraction=float(f))
-               for f in s["curve_fractions"] for m in s["curve_methods"]]
-        plan["missing"] = ts
+        plan["missing"] = _missing_tasks(mk, mocap, subset, s, one)
     if "n_ablation" in only:
         plan["n_ablation"] = [mk("n_ablation", sequence=n, Ns=list(s["Ns"]))
                               for n in subset("ablation_sequences")]

@@ -389,6 +389,11 @@ def build_tables(plan, results, sequences):
         t, extra["missing"] = _missing_tables(rows_of("missing", "missing"), paper_k,
                                               sequences)
         tables += t
+        track_rows = rows_of("missing", "missing_tracks")
+        if track_rows:
+            from .missing_tracks import TITLE as TRACKS, missing_track_table
+
+            tables.append(Table("missing_tracks", TRACKS, *missing_track_table(track_rows)))
     if "n_ablation" in plan:
         n_rows = rows_of("n_ablation")
         t, extra["n_info"] = _n_table(n_rows)

@@ -173,6 +173,26 @@ def run_missing(sequence, method, pattern, fraction, run=0, seed=0, data=None):
                  t_total=float(secs))]
 
 
+def run_missing_tracks(sequence, pattern, fraction, drop_seed, seed=0, data=None):
+    """The lost-tracks table (issue 24): the organic pipeline on the complete W and on W
+    with ``fraction`` of the tracks hit by ``pattern`` (:func:`data_tools.drop_tracks`,
+    seeded by ``drop_seed``); the metrics of :func:`.missing_tracks.track_row`."""
+    import data_tools
+
+    from .missing_tracks import track_row
+
+    seq = load_sequence(sequence, data)
+    W, mask = data_tools.drop_tracks(seq.W, fraction, seed=drop_seed, pattern=pattern)
+    complete, _ = _reconstruct(seq.W, seq.K, seed=seed)
+    res, secs = _reconstruct(W, seq.K, seed=seed)
+    row = dict(sequence=sequence, pattern=pattern, fraction=float(fraction),
+               drop_seed=int(drop_seed), K=int(seq.K), missing=float(1 - mask.mean()),
+               e3d_complete=_errors(complete, seq)["e3d"], **_errors(res, seq),
+               t_total=float(secs))
+    row.update(track_row(complete, res, seq.shapes, mask))
+    return [row]
+
+
 def run_n_ablation(sequence, Ns, seed=0, data=None):
     """Fig. 3d: the paper's shape stage (PSVT ADMM) with N = 0..5 on the same (organic)
     rotations; N is that solver's number of unpenalised singular values."""
@@ -219,6 +239,7 @@ RUNNERS = {
     "rotation_ablation": run_rotation_ablation,
     "noise": run_noise,
     "missing": run_missing,
+    "missing_tracks": run_missing_tracks,
     "n_ablation": run_n_ablation,
     "k_sweep": run_k_sweep,
     "auto_k": run_auto_k,
