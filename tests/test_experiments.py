@@ -273,3 +273,15 @@ def test_benchmark_command_writes_tables_and_plots(tmp_path, capsys):
                "--only", "mocap", "missing", "--quiet"])
     assert len(list((out / "cache").glob("*.json"))) == n_cache
     assert f"({n_cache} from the cache)" in (out / "README.md").read_text()
+
+
+def test_benchmark_sequences_leave_out_tasks_without_one():
+    """The shape experiment's tasks name no sequence: the default run (no --sequences) lists
+    the sequences of the other tasks only (a None among them crashed the MoCap table)."""
+    from nrsfm.experiments.plan import build_plan, unique_tasks
+    from nrsfm.experiments.runner import sequences_of
+
+    tasks = unique_tasks(build_plan(only=["pseudo_inverse", "shape"], quick=True,
+                                    data="/nonexistent", external="/nonexistent"))
+    assert any("sequence" not in t.params for t in tasks)
+    assert sequences_of(tasks) == list(dt.MOCAP_NAMES)

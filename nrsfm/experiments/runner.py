@@ -103,7 +103,7 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     from .executors import load_cached
 
     results = {t.key: load_cached(t, out / "cache") for t in tasks}
-    seqs = sequences or list(dict.fromkeys(t.params.get("sequence") for t in tasks))
+    seqs = sequences or sequences_of(tasks)
     header = (f"# nrsfm benchmark{' (quick set)' if quick else ''}\n\n"
               f"{len(tasks)} tasks ({n_cached} from the cache), {seconds:.0f} s wall, "
               f"{'Dask scheduler' if scheduler else f'{workers} local worker(s)'}, "
@@ -112,6 +112,13 @@ def run_benchmark(out, data=None, only=None, sequences=None, quick=False, worker
     files, tables = write_report(out, plan, results, list(seqs), header=header)
     return dict(files=files, tables=tables, rows=rows, n_tasks=len(tasks),
                 n_cached=n_cached, seconds=seconds, out=out)
+
+
+def sequences_of(tasks):
+    """The sequences the tasks name, in first-seen order (tasks that name none, such as
+    the shape experiment's, are left out)."""
+    return list(dict.fromkeys(t.params["sequence"] for t in tasks
+                              if t.params.get("sequence") is not None))
 
 
 class _LineProgress:
