@@ -177,7 +177,8 @@ class Reconstruction:
         return out
 
     def summary(self):
-        """A few lines describing the run."""
+        """A few lines describing the run: sizes, fit, missing data, the diagnostics' notes
+        (no action needed) and warnings, time."""
         F, P = self.n_frames, self.n_points
         lines = [f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, "
                  f"scale={self.scale:.4g}",
@@ -189,6 +190,9 @@ class Reconstruction:
                          f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
                          f"tracks undetermined (seen in too few frames: their 3D is an "
                          f"extrapolation)")
+        if self.diagnostics is not None:            # notes need no action; flags warned
+            lines += [f"  note: {n}" for n in self.diagnostics.notes]
+            lines += [f"  WARNING: {f}" for f in self.diagnostics.flags]
         t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
         lines.append(f"  time: {t}")
         return "\n".join(lines)

@@ -132,15 +132,11 @@ def _num(x):
 
 
 def print_report(result, seq=None):
-    """Print the result's summary, its diagnostics' warnings and, given a sequence with
-    ground truth, the errors; returns the errors (a dict, empty without ground truth)."""
+    """Print the result's summary (with its diagnostics' notes and warnings) and, given a
+    sequence with ground truth, the errors; returns the errors (a dict, empty without
+    ground truth)."""
     print(result.summary())
     errs = {}
-    diagnostics = getattr(result, "diagnostics", None)
-    for note in getattr(diagnostics, "notes", []):
-        print(f"  note: {note}")          # no action needed (docs/warnings.md)
-    for flag in getattr(diagnostics, "flags", []):
-        print(f"  WARNING: {flag}")       # the NRSfMWarning, printed once (see main)
     if seq is not None and seq.shapes is not None:
         errs = result.errors(seq.shapes, seq.rotations)
         parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
