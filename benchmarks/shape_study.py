@@ -2,7 +2,7 @@
 
 Usage::
 
-    NRSFM_DATA=../shared/data python benchmarks/shape_study.py \
+    NRSFM_DATA=/path/to/data python benchmarks/shape_study.py \
         [--sections synthetic gt noise time stability pipeline dense] [--solvers admm bilinear]
 
 Sections (one BLAS thread; the figures are printed, nothing is asserted):

@@ -1,9 +1,12 @@
 """Time per stage of the organic pipeline (median of several runs, one BLAS thread).
 
-    NRSFM_DATA=/path/to/data python benchmarks/stage_timing.py [--sequences pickup drink] [--repeats 5]
+    OPENBLAS_NUM_THREADS=1 NRSFM_DATA=/path/to/data python benchmarks/stage_timing.py \
+        [--sequences pickup drink] [--repeats 5] [--shape-solver admm] [--given-rotations]
 
 Prints the pipeline's own stage timers (``Reconstruction.timings`` and the rotation stage's
-``timings``) as medians, and the paper's reported pickup timings (from
+``timings``) as medians, also in units of one thin SVD of a 357 x 123 matrix (the size of
+pickup's X#) timed in the same process (the issues' unit: a ratio moves much less than
+seconds on a shared machine), and the paper's reported pickup timings (from
 ``nrsfm/data/published.json`` through :mod:`nrsfm.published`).
 """
 
@@ -19,31 +22,49 @@ import nrsfm
 from nrsfm.published import published_value
 
 
+def svd_unit(repeats=40):
+    """Median seconds of one thin SVD of a seeded 357 x 123 Gaussian matrix."""
+    A = np.random.default_rng(0).standard_normal((357, 123))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        np.linalg.svd(A, full_matrices=False)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data",
                     help="the folder that holds mocap/, or mocap/ itself (default: $NRSFM_DATA)")
     ap.add_argument("--sequences", nargs="+", default=["pickup", "drink"])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--shape-solver", default="bilinear", help="shape solver (default bilinear)")
+    ap.add_argument("--given-rotations", action="store_true",
+                    help="the ground-truth rotations: the shape stage alone")
     args = ap.parse_args(argv)
     mocap = args.data
+    unit = svd_unit()
+    print(f"one thin SVD of 357 x 123: {1e3 * unit:.2f} ms (the unit in brackets below)")
     for name in args.sequences:
         seq = dt.load_mocap(name, mocap)
         stages, totals = {}, []
         for _ in range(args.repeats):
             t0 = time.perf_counter()
-            res = nrsfm.reconstruct(seq.W, seq.K)
+            res = nrsfm.reconstruct(seq.W, seq.K, shape_solver=args.shape_solver,
+                                    rotations=seq.rotations if args.given_rotations else None)
             totals.append(time.perf_counter() - t0)
             for k, v in res.timings.items():
                 stages.setdefault(k, []).append(v)
-            for k, v in res.rotation_stage.timings.items():
+            for k, v in (res.rotation_stage.timings if res.rotation_stage else {}).items():
                 stages.setdefault("rotations/" + k, []).append(v)
         print(f"{name} (F={seq.n_frames}, K={seq.K}), median of {args.repeats} runs, seconds")
         for k, v in stages.items():
-            print(f"  {k:28s} {np.median(v):8.4f}  (min {np.min(v):.4f}, max {np.max(v):.4f})")
+            print(f"  {k:28s} {np.median(v):8.4f} [{np.median(v) / unit:6.0f}]  "
+                  f"(min {np.min(v):.4f}, max {np.max(v):.4f})")
         print(f"  {'total reconstruct()':28s} {np.median(totals):8.4f}  (min {np.min(totals):.4f}, "
               f"max {np.max(totals):.4f})")
-        print(f"  ADMM iterations {res.shape_stage.n_iter}")
+        print(f"  shape-stage iterations {res.shape_stage.n_iter}")
     t = {k: published_value("timing_reported", k) for k in (
         "pickup_registration_s", "pickup_filtering_s", "pickup_rotation_averaging_s")}
     print("paper (C++/MATLAB, pickup): registration {pickup_registration_s} s, filtering "
