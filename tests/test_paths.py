@@ -128,7 +128,8 @@ def test_missing_mocap_file_names_the_folders_searched(monkeypatch, tmp_path):
 
 
 def test_missing_mocap_file_points_at_the_folder_one_level_down(tmp_path):
-    """Given the grandparent of mocap/ (``--data ../shared``), name the folder to use."""
+    """Given the grandparent of mocap/ (the folder above the data folder), name the folder
+    to use."""
     folder = _shark_folder(tmp_path / "data")
     with pytest.raises(FileNotFoundError) as info:
         dt.load_mocap("shark", tmp_path)
