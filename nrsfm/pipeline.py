@@ -213,11 +213,6 @@ def _timed(timings, name):
     timings[name] = time.perf_counter() - t0
 
 
-#: reconstruct's keywords that ``settings=`` replaces, with their defaults
-_SETTINGS_KEYWORDS = dict(method="organic", shape_solver="bilinear", missing="complete",
-                          rotation_options=None, shape_options=None)
-
-
 def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=None,
                 shape_options=None, shape_solver=None, progress=False,
                 blas_thread_limit=1, missing=None, settings=None):
@@ -339,16 +334,16 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
 
 
 def _settings(settings, **keywords):
-    """The run's Settings: ``settings`` as given, or built from the keywords (their
-    defaults where None); a keyword beside ``settings`` is refused."""
+    """The run's Settings: ``settings`` as given, or built by :func:`method_settings` from
+    the keywords given (its defaults for those that are None); a keyword beside
+    ``settings`` is refused."""
     if settings is None:
-        kw = {k: _SETTINGS_KEYWORDS[k] if v is None else v for k, v in keywords.items()}
-        return method_settings(**kw)
+        return method_settings(**{k: v for k, v in keywords.items() if v is not None})
     if not isinstance(settings, Settings):
         raise ValueError(f"settings must be an nrsfm.settings.Settings; got {settings!r}")
     beside = sorted(k for k, v in keywords.items() if v is not None)
     if beside:
-        raise ValueError(f"settings= replaces {', '.join(sorted(_SETTINGS_KEYWORDS))}; got "
+        raise ValueError(f"settings= replaces {', '.join(sorted(keywords))}; got "
                          f"{', '.join(beside)} beside it, which would be ignored: put them "
                          f"into the settings (e.g. dataclasses.replace(settings.shape, "
                          f"solver=...))")
