@@ -288,6 +288,42 @@ def test_bilinear_noisy_stationary_scale_free_and_wnn_identity():
     np.testing.assert_allclose(big.shapes / 1e3, res.shapes, atol=1e-4 * np.abs(res.shapes).max())
 
 
+def test_bilinear_rank_from_W_and_the_prior():
+    """rank=None: K where W is itself of rank <= 3K (a rank-K shape under noise), else the
+    prior's rank: from 3K, doubled while the cap binds (a rank-6 shape solved at K = 1)."""
+    from nrsfm.stages.shape.bilinear import BIND_RTOL, prior_rank
+
+    low = data_tools.make_synthetic(F=60, P=20, K=2, motion="random", seed=3)
+    W = data_tools.add_noise(low.W, 0.05, seed=0)
+    res = optimize_shapes_bilinear(W, low.rotations, 2)
+    assert res.params["rank_rule"] == "W of rank <= 3K" and res.params["ranks"] == [2]
+    high = data_tools.make_synthetic(F=60, P=20, K=6, motion="random", seed=3)
+    res = optimize_shapes_bilinear(high.W, high.rotations, 1)
+    assert res.params["rank_rule"] == "prior" and res.params["ranks"] == [3, 6]
+    s = np.linalg.svd(res.shapes.reshape(60, -1), compute_uv=False)
+    assert s[5] <= BIND_RTOL * s[0]                 # the cap no longer binds
+    given = optimize_shapes_bilinear(high.W, high.rotations, 1, rank=3)
+    assert given.params["rank_rule"] == "given" and given.params["ranks"] == [3]
+    # the rule itself: numerical rank below 3K, a gap at 3K, or neither
+    assert prior_rank(np.r_[1.0, 0.5, 1e-12, 1e-13], 1, 10, 10) == (1, "W of rank <= 3K")
+    assert prior_rank(np.r_[1.0, 0.9, 0.8, 0.1], 1, 10, 10) == (1, "W of rank <= 3K")
+    assert prior_rank(np.r_[1.0, 0.9, 0.8, 0.7], 1, 10, 10) == (3, "prior")
+
+
+def test_bilinear_weight_follows_the_square_of_the_noise():
+    """mu = max(mu_factor, mu_noise nr) noise (sqrt(F) + sqrt(3P)): the factor mu_factor
+    on clean W, mu_noise nr (nr: the noise over W's RMS entry) once that is larger."""
+    seq = data_tools.make_synthetic(F=50, P=20, K=3, motion="smooth", seed=3)
+    for sigma in (0.005, 0.1):
+        W = data_tools.add_noise(seq.W, sigma, seed=1)
+        res = optimize_shapes_bilinear(W, seq.rotations, 3)
+        nr = res.params["noise_rel"]
+        flat = optimize_shapes_bilinear(W, seq.rotations, 3, mu_noise=0.0)
+        ratio = res.mu / flat.mu
+        assert ratio == pytest.approx(max(1.0, 0.6 * nr / 0.01), rel=1e-9)
+    assert ratio > 2                                   # sigma .1: the noise term decides
+
+
 def test_noise_level_from_W_alone():
     clean = data_tools.make_synthetic(F=60, P=30, K=2, seed=5)
     assert noise_level(clean.W, 2) < 1e-12 * np.sqrt(np.mean(clean.W ** 2))

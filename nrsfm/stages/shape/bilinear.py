@@ -15,11 +15,18 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   Eq. 10) and ``a_i = sigma_1 / sigma_i`` of ``X_init#`` (Eq. 9 up to the common factor,
   which goes into ``mu``); ``weighted`` the same ratios with ``a_1 = 1`` (Eq. 8); ``nuclear``
   ``a_i = 1`` (Eq. 7).
-* Balance from W alone: ``mu = mu_factor * noise * (sqrt(F) + sqrt(3P))``, ``noise`` the
-  RMS of W beyond its rank-3K approximation (:func:`nrsfm.noise.noise_level`), ``mu_factor = 0.03``
-  (measured; 1 would be the threshold that removes Gaussian noise of that level and is far
-  too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the
-  exact rank-K fit. If that fit is not unique (closed-form nullspace gap at rounding
+* Balance from W alone: ``mu = m * noise * (sqrt(F) + sqrt(3P))``, ``noise`` the
+  RMS of W beyond its rank-3K approximation (:func:`nrsfm.noise.noise_level`) and
+  ``m = max(mu_factor, mu_noise * nr)``, ``nr`` that noise over W's RMS entry: the weight
+  grows as the square of the noise (``mu_factor = 0.01``, ``mu_noise = 0.6``, measured in
+  ``docs/shape_stage.md``; 1 would be the threshold that removes Gaussian noise of that
+  level and is far too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to
+  rounding) and (*) is the exact rank-K fit.
+* Rank r from W and the prior (``rank=None``): K where W is itself of rank at most 3K (its
+  numerical rank is below 3K, or ``s_3K+1 / s_3K < GAP_MAX``: a rank-K shape model plus
+  noise), the rank-K model; otherwise the prior chooses the rank: r starts at 3K and is
+  doubled while the cap binds (``sigma_r(X#) > BIND_RTOL sigma_1(X#)`` at the answer;
+  columns the prior does not want go to zero to rounding), up to ``min(F, 3P)``. If that fit is not unique (closed-form nullspace gap at rounding
   level) a RuntimeWarning is issued (``W-shape-not-unique``, ``docs/warnings.md``) and
   ``mu`` raised to ``min_mu ||W||_F``.
 * Scale-free: W is divided by ``||W||_F`` inside and ``mu`` is proportional to the scale
@@ -51,14 +58,23 @@ from ...noise import noise_from_singular_values
 from ...validation import check_choice, check_integer, check_positive
 from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
+from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, c_step, nullspace_coefficients
 from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["BilinearSettings", "ClosedFormSettings", "balance_factors", "bilinear_weights",
-           "frame_preconditioner", "solve_bilinear", "solve_closed_form"]
+__all__ = ["BIND_RTOL", "BilinearSettings", "ClosedFormSettings", "GAP_MAX", "balance_factors",
+           "bilinear_weights", "frame_preconditioner", "prior_rank", "solve_bilinear",
+           "solve_closed_form"]
 
 #: L-BFGS restarts with a fresh preconditioner every this many iterations
 LBFGS_SEGMENT = 100
+#: W counts as of rank at most 3K (the rank-K model) when s_3K+1 / s_3K is below this
+#: (measured: 0.06 - 0.27 for rank-K shapes under 2 - 10 % noise, 0.72 - 0.92 for the real
+#: shapes, docs/shape_stage.md)
+GAP_MAX = 0.5
+#: the rank cap binds when sigma_r(X#) exceeds this fraction of sigma_1(X#) (measured:
+#: 1e-14 - 1e-17 when the prior's answer has lower rank, 6e-3 when it binds)
+BIND_RTOL = 1e-8
 
 
 # --------------------------------------------------------------------------------------
@@ -73,10 +89,15 @@ class BilinearSettings(SolverSettings):
     Attributes
     ----------
     rank : int or None
-        Factor rank r (default K).
+        Factor rank r; None: from W and the prior (module docstring): K where W is of rank
+        at most 3K, else as large as the prior's answer needs (from 3K, doubled while the
+        cap binds).
     mu_factor : float
-        ``mu = mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (measured: 0.03,
-        ``docs/shape_stage.md``).
+        Least ``m`` in ``mu = m * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (measured:
+        0.01, ``docs/shape_stage.md``).
+    mu_noise : float
+        ``m = max(mu_factor, mu_noise * nr)``, ``nr`` the noise level over W's RMS entry:
+        the weight follows the square of the noise (measured: 0.6).
     mu : float or None
         Override ``mu`` (W's units).
     min_mu : float
@@ -94,7 +115,8 @@ class BilinearSettings(SolverSettings):
     name: ClassVar[str] = "bilinear"
     INITS: ClassVar[tuple] = ("closed_form", "rank_k")
     rank: Optional[int] = None
-    mu_factor: float = 0.03
+    mu_factor: float = 0.01
+    mu_noise: float = 0.6
     mu: Optional[float] = None
     min_mu: float = 1e-5
     init: str = "closed_form"
@@ -104,7 +126,7 @@ class BilinearSettings(SolverSettings):
     def __post_init__(self):
         if self.rank is not None:
             check_integer(self.rank, "rank", minimum=1)
-        for name in ("mu_factor", "min_mu", "gtol"):
+        for name in ("mu_factor", "mu_noise", "min_mu", "gtol"):
             check_positive(name, getattr(self, name), strict=False)
         if self.mu is not None:
             check_positive("mu", self.mu, strict=False)
@@ -144,7 +166,8 @@ def solve_closed_form(W, R, K, settings=ClosedFormSettings(), progress=None):
     ``mu = 0`` and no iterations (B from :func:`closed_form_coefficients`, C by least
     squares); the result reports the data term and the relative gradient norm of the plain
     rank-K fit at that point. No prior."""
-    res = _bilinear(W, R, K, "nuclear", BilinearSettings(mu=0.0, max_iter=0, gtol=settings.gtol),
+    res = _bilinear(W, R, K, "nuclear", BilinearSettings(rank=K, mu=0.0, max_iter=0,
+                                                       gtol=settings.gtol),
                     progress)
     res.prior, res.solver = "none", "closed_form"
     res.params["prior"] = "none"
@@ -289,7 +312,8 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
     gap; a RuntimeWarning (and ``mu >= min_mu``) when the rank-K fit is not unique."""
     noise = noise_from_singular_values(sw, Wn_shape, K)
     if st.mu is None:
-        mu_n = st.mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P))
+        nr = noise * math.sqrt(Wn_shape[0] * Wn_shape[1])       # ||Wn||_F = 1
+        mu_n = max(st.mu_factor, st.mu_noise * nr) * noise * (math.sqrt(F) + math.sqrt(3 * P))
     else:
         mu_n = float(st.mu) / scale
     gap, B0 = float("nan"), None
@@ -300,33 +324,71 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
             message = (text("W-shape-not-unique", gap=gap, K=K, min_mu=st.min_mu)
                        if st.mu is None else
                        text("W-shape-not-unique-mu-given", gap=gap, K=K, mu=st.mu))
-            warnings.warn(message, RuntimeWarning, stacklevel=4)
+            warnings.warn(message, RuntimeWarning, stacklevel=5)
             if st.mu is None:
                 mu_n = max(mu_n, st.min_mu)
     return mu_n, noise, B0, gap
 
 
+def prior_rank(sw, K, F, P):
+    """(first rank r, why) of the ``rank=None`` rule from W's singular values ``sw``.
+
+    ``"W of rank <= 3K"``: r = K, W's numerical rank (above ``DETERMINED_RTOL s_1``) is
+    below 3K or ``s_3K+1 / s_3K < GAP_MAX`` (the rank-K model); else ``"prior"``:
+    r = min(3K, F, 3P), doubled by the solver while the cap binds.
+    """
+    sw = np.asarray(sw, float)
+    numerical_rank = int(np.sum(sw > DETERMINED_RTOL * sw[0]))
+    gap = sw[3 * K] / sw[3 * K - 1] if sw.size > 3 * K and sw[3 * K - 1] > 0 else 0.0
+    if numerical_rank < 3 * K or gap < GAP_MAX:
+        return K, "W of rank <= 3K"
+    return min(3 * K, F, 3 * P), "prior"
+
+
 def _bilinear(W, R, K, prior, st, progress):
-    """Set-up, start, L-BFGS (:func:`_minimise`) and the result in W's units."""
+    """Set-up, the rank rule, L-BFGS (:func:`_minimise`) at each rank, and the result in
+    W's units."""
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     check_prior(prior)
-    r = K if st.rank is None else st.rank
-    if not 1 <= r <= min(F, 3 * P):
-        raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {min(F, 3 * P)}]; got {r!r}")
-    say = progress if callable(progress) else (lambda msg: None)
     scale = float(np.linalg.norm(W))
     if not scale > 0:
         raise ValueError("W is zero: nothing to reconstruct")
     Wn = W / scale
-    Wf = Wn.reshape(F, 2, P)
-    Rt = Rf.transpose(0, 2, 1)
-    Xi3 = Rt @ Wf
-    Xi = Xi3.reshape(F, 3 * P)
-    sigma = _singular_values(Xi)
-    a = bilinear_weights(sigma, r, prior)
     Uw, sw, _ = np.linalg.svd(Wn, full_matrices=False)        # one thin SVD of W
+    r_max = min(F, 3 * P)
+    if st.rank is None:
+        r, why = prior_rank(sw, K, F, P)
+    else:
+        r, why = st.rank, "given"
+        if not 1 <= r <= r_max:
+            raise ValueError(f"rank must be in [1, min(F, 3P)] = [1, {r_max}]; got {r!r}")
+    say = progress if callable(progress) else (lambda msg: None)
+    Xi3 = Rf.transpose(0, 2, 1) @ Wn.reshape(F, 2, P)
+    sigma = _singular_values(Xi3.reshape(F, 3 * P))
+    ranks, n_total = [], 0
+    while True:
+        fit = _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale)
+        ranks.append(r)
+        n_total += fit["n_iter"]
+        s_x = fit["s_x"]
+        binds = why == "prior" and r < r_max and s_x[-1] > BIND_RTOL * s_x[0]
+        say(f"shape (bilinear, {prior}, r={r}) stopped after {fit['n_iter']} iterations: "
+            f"relative gradient {fit['rel']:.2e}"
+            + ("; the rank cap binds, doubling it" if binds else ""))
+        if not binds:
+            break
+        r = min(2 * r, r_max)
+    fit.update(ranks=ranks, rank_rule=why, n_total=n_total)
+    return _result(fit, Xi3, sigma, F, P, K, prior, st, scale)
+
+
+def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale):
+    """(*) at rank r from its start: the fitted factors and their measures (a dict)."""
+    F, P = Xi3.shape[0], Xi3.shape[2]
+    Xi = Xi3.reshape(F, 3 * P)
+    a = bilinear_weights(sigma, r, prior)
     mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
-    obj = _Objective(Rt @ Rf, Xi, mu_n * a)
+    obj = _Objective(Rf.transpose(0, 2, 1) @ Rf, Xi, mu_n * a)
     if B0 is None:
         U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
         B0 = U[:, :r] * np.sqrt(sv[:r])
@@ -334,25 +396,33 @@ def _bilinear(W, R, K, prior, st, progress):
     B, C = balance_factors(B0, obj.c_step(B0))
     B, C, n_iter = _minimise(B, C, obj, st.gtol, st.max_iter, F, r)
     E, data, rel = obj.measure(B, C)
-    res = Wf - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
+    res = Wn.reshape(F, 2, P) - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
     data_exact = 0.5 * float(np.sum(res ** 2))
-    E += data_exact - data                                     # exact data term
     s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
                         compute_uv=False)                      # sigma(B C'), r x r
+    return dict(B=B, C=C, n_iter=n_iter, obj=obj, a=a, mu_n=mu_n, noise=noise, gap=gap,
+                E=E + data_exact - data, data_exact=data_exact, rel=rel, s_x=s_x, r=r)
+
+
+def _result(fit, Xi3, sigma, F, P, K, prior, st, scale):
+    """The ShapeResult of the last fit, in W's units."""
+    B, C, obj, rel = fit["B"], fit["C"], fit["obj"], fit["rel"]
     converged = rel <= st.gtol
-    say(f"shape (bilinear, {prior}, r={r}) stopped after {n_iter} iterations: relative "
-        f"gradient {rel:.2e}, {'converged' if converged else 'not converged'}")
-    params = dict(prior=prior, K=K, rank=r, mu_factor=st.mu_factor, min_mu=st.min_mu,
-                  init=st.init, gtol=st.gtol, max_iter=int(st.max_iter),
-                  normalisation=scale, nullspace_gap=gap)
+    noise_rel = fit["noise"] * math.sqrt(2 * F * P)
+    params = dict(prior=prior, K=K, rank=fit["r"], ranks=fit["ranks"],
+                  rank_rule=fit["rank_rule"], mu_factor=st.mu_factor, mu_noise=st.mu_noise,
+                  noise_rel=noise_rel, min_mu=st.min_mu, init=st.init, gtol=st.gtol,
+                  max_iter=int(st.max_iter), normalisation=scale,
+                  nullspace_gap=fit["gap"])
+    wnn = fit["data_exact"] + float(obj.reg @ fit["s_x"])
     return ShapeResult(
         shapes=(B @ C.T).reshape(F, 3, P) * scale, X_init=Xi3 * scale,
-        X_init_singular_values=sigma * scale, theta=obj.reg * scale, weights=a,
-        mu=mu_n * scale, noise=noise * scale, N=1 if prior == "organic" else 0,
+        X_init_singular_values=sigma * scale, theta=obj.reg * scale, weights=fit["a"],
+        mu=fit["mu_n"] * scale, noise=fit["noise"] * scale, N=1 if prior == "organic" else 0,
         prior=prior, solver="bilinear", B=B * math.sqrt(scale), C=C * math.sqrt(scale),
-        objective=E * scale ** 2, wnn_objective=(data_exact + float(obj.reg @ s_x)) * scale ** 2,
-        optimality=rel, optimality_kind="gradient", history={k: np.asarray(v) for k, v in obj.hist.items()},
-        n_iter=n_iter, converged=converged, params=params)
+        objective=fit["E"] * scale ** 2, wnn_objective=wnn * scale ** 2, optimality=rel,
+        optimality_kind="gradient", history={k: np.asarray(v) for k, v in obj.hist.items()},
+        n_iter=fit["n_total"], converged=converged, params=params)
 
 
 class _Done(Exception):
