@@ -18,10 +18,19 @@ over the frames that observe point p (inverted once per observation pattern); wi
 every frame's two rows and offset are an (r + 1) x (r + 1) system over the points the
 frame observes. Both steps are batched Gram products, so one iteration costs O(|Omega| r^2):
 no SVD after the start, a rank-r truncated SVD (through the smaller Gram matrix) of the
-mean-filled W. Two measures keep the alternation from crawling (Buchanan & Fitzgibbon,
-CVPR 2005, on its slow convergence): the factors are re-balanced after every sweep
-(``M'M = BB'``, the split of MB with the least ridge), and the sweep is extrapolated by
-``k^(1/3)`` when that lowers the cost (Bro's line search for alternating least squares).
+mean-filled W. Three measures keep the alternation from crawling (Buchanan & Fitzgibbon,
+CVPR 2005, on its slow convergence). The data term has two exact symmetries that only the
+small ridge pins, and plain alternation moves along them by a fraction of order
+``lam / ||A_p||`` per sweep: ``M -> M G``, ``B -> G^-1 B`` (G invertible), and the offset's
+``B -> B - c 1'``, ``t -> t + M c``. Both are fixed exactly in every sweep: after the
+M-step the factors are re-balanced (``M'M = BB'``, the split of MB with the least ridge),
+after the B-step the mean of B over the points is moved into t (the shift with the least
+ridge). Without the second the alternation crawled on the synthetic videos with late
+tracks (the data term flat to 2e-5 over 500 sweeps, the ridge shrinking by 1e-5 and the
+mean of B by 0.2 % a sweep): 306 iterations on the 100-frame face video and 430-966 on the
+12-frame one of the tests, against 7-14 with it. The sweep is also extrapolated by ``k^(1/3)`` when that lowers the cost (Bro's line search for
+alternating least squares). The stopping test, the objective's relative decrease in one
+iteration below ``tol``, is scale-free (W times c: the same iterations).
 
 Tracks seen in a few frames only: a track's fill is an extrapolation whose noise gain
 (:func:`fill_gain`) grows without bound as its observed
@@ -180,27 +189,31 @@ def _balance(M, B):
 def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     """Alternate the M- and B-steps from M, t. Returns ``(M, t, costs, converged)``.
 
-    Each sweep is followed by an extrapolation of (M, t) along the sweep's step by
+    Every B-step is followed by the offset's gauge (the mean of B over the points moved
+    into t: the data term is unchanged, the ridge lowered; see the module docstring), and
+    each sweep by an extrapolation of (M, t) along the sweep's step by
     ``k^(1/3)`` (iteration k), kept when it lowers the cost (the line search Bro uses to
     accelerate alternating least squares, 1998): plain alternation crawls along the
     shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
     """
     groups = mask_groups(obs)
 
-    def f(M, t):                                              # B-step and the cost
+    def f(M, t):                                    # B-step, the gauge, and the cost
         B, data = _solve_structure(Wz, groups, M, t, lam)
-        return B, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
+        mean = B.mean(axis=1)
+        B, t = B - mean[:, None], t + M @ mean
+        return B, t, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
 
-    B, c = f(M, t)
+    B, t, c = f(M, t)
     cost = []
     for k in range(1, max(max_iter, 1) + 1):
         M1, t1, _ = _solve_motion(Wz, obs, B, lam)
         M1 = _balance(M1, B)
-        B1, c1 = f(M1, t1)
+        B1, t1, c1 = f(M1, t1)
         d = k ** (1.0 / 3.0)
         if d > 1.0:
             Me, te = M + d * (M1 - M), t + d * (t1 - t)
-            Be, ce = f(Me, te)
+            Be, te, ce = f(Me, te)
             if ce < c1:
                 M1, t1, B1, c1 = Me, te, Be, ce
         cost.append(c1)
