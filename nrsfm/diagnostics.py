@@ -36,7 +36,7 @@ Signals (name: meaning; flagged when)
   ``CAMERA_SPREAD_MIN_DEG`` (a nearly static camera: depth is not observed).
 * ``depth_sensitivity``: how much the shapes move per unit of rotation change between
   the stage's averaged rotations and its best single triplet's (both are solved by the
-  shape stage, :func:`nrsfm.stages.selection.depth_sensitivity`); flagged above
+  shape stage, :func:`nrsfm.metrics.depth_sensitivity`); flagged above
   ``DEPTH_SENSITIVITY_MAX`` (the camera motion does not determine the depth of the
   deformation: a limit of the method, not a failed search).
 * ``triplet_cost_ratio`` above ``COST_RATIO_MAX`` is a flag only when other random starts
@@ -76,7 +76,7 @@ KEPT_MIN = 0.5
 SIGN_FRACTION_MAX = 0.10
 
 #: largest acceptable ratio of the shapes' change to the rotations' change between the
-#: two rotation estimates (``nrsfm.stages.selection.depth_sensitivity``)
+#: two rotation estimates (``nrsfm.metrics.depth_sensitivity``)
 DEPTH_SENSITIVITY_MAX = 1.0
 #: ... when the shapes themselves change by more than this (e3d between the two shape sets;
 #: below it both rotation estimates are exact to the solvers' precision)

@@ -14,12 +14,13 @@ import time
 import warnings
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from .diagnostics import NRSfMWarning, diagnose
 from .settings import METHODS, Settings, method_settings
-from .stages.completion import complete
+from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.measurement import Factorization, measure
 from .stages.selection import shape_for_rotations
 from .stages.shape import ShapeResult
@@ -72,11 +73,6 @@ class Reconstruction:
     completion : nrsfm.stages.completion.Completion or None
         Where the input had missing observations: the completion stage's result
         (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
-    fill_gain : (P,) ndarray or None
-        Where the input had missing observations: how much each track's filled entries
-        amplify measurement noise under the rank-3K motion ``M_hat``
-        (``completion.fill_gain``, computed by the completion stage); see
-        :attr:`undetermined`.
     """
 
     rotations: np.ndarray
@@ -96,7 +92,16 @@ class Reconstruction:
     observed: np.ndarray = None
     W_completed: np.ndarray = None
     completion: object = None
-    fill_gain: np.ndarray = None
+
+    @cached_property
+    def fill_gain(self):
+        """(P,) ndarray or None: where the input had missing observations, how much each
+        track's filled entries amplify measurement noise under the rank-3K motion
+        ``M_hat`` that the later stages used
+        (:func:`nrsfm.stages.completion.fill_gain`); see :attr:`undetermined`."""
+        if self.observed is None:
+            return None
+        return fill_gain(self.factorization.M_hat, self.observed)
 
     @property
     def undetermined(self):
@@ -105,8 +110,6 @@ class Reconstruction:
         complete input. Their shapes are filled, but are an extrapolation."""
         if self.fill_gain is None:
             return np.zeros(self.n_points, bool)
-        from .stages.completion import MAX_GAIN
-
         return self.fill_gain > MAX_GAIN
 
     @property
@@ -329,8 +332,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                           params=params, timings=timings, diagnostics=diagnostics,
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
-                          completion=completion,
-                          fill_gain=None if completion is None else completion.fill_gain)
+                          completion=completion)
 
 
 def _settings(settings, **keywords):

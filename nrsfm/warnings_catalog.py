@@ -137,7 +137,7 @@ CATALOG = {
         "more varied directions",
         "`depth_sensitivity` (the shapes' change per unit of rotation change between the "
         "stage's averaged rotations and its best single triplet's, "
-        "`nrsfm.stages.selection.depth_sensitivity`) above `DEPTH_SENSITIVITY_MAX` = "
+        "`nrsfm.metrics.depth_sensitivity`) above `DEPTH_SENSITIVITY_MAX` = "
         "{DEPTH_SENSITIVITY_MAX} while the shapes change by more than "
         "`DEPTH_SHAPE_CHANGE_MIN` = {DEPTH_SHAPE_CHANGE_MIN} (e3d)",
         "small changes of the cameras move the shapes a lot: the data fit several depths "

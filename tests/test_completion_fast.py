@@ -7,7 +7,7 @@ import pytest
 from nrsfm.stages.completion import (MAX_GAIN, complete_low_rank, fill_gain,
                                      observed_entries)
 from nrsfm.stages.completion.factorisation import _solve_structure, _truncated_svd
-from nrsfm.stages.completion.gain import mask_groups
+from nrsfm.stages.completion.factorisation import mask_groups
 
 
 def _tracks(F=40, P=60, r=4, lost=0.3, late=0.1, noise=0.0, seed=0):

@@ -13,25 +13,25 @@ completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"`
   lags (few points per frame for the rank: MoCap-sized W, where the full SVD is cheap), the
   factorisation elsewhere (dense tracks). Measurements: ``docs/missing_data_scale.md``.
 
-The modules import one way only: ``settings``, ``lags``, ``masks``, ``gain`` (no
-imports inside the package) <- ``result`` <- ``soft_impute``, ``factorisation`` <- this
-module.
+:func:`complete` reads the mask (:mod:`.masks`) and the lags (:mod:`.lags`) once, and
+hands the checked, zero-filled W and the lagged matrix's copies to one solver, which then
+works alone: each solver module holds its whole iteration (the factorisation also holds
+its normal matrices and the fill gain they give, :func:`.factorisation.fill_gain`). The
+modules import one way only: ``settings``, ``lags``, ``masks``, ``result`` (no imports
+inside the package) <- ``soft_impute``, ``factorisation`` <- this module.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 from ...warnings_catalog import text
-from ..measurement import measure
-from .factorisation import complete_low_rank
-from .gain import MAX_GAIN, fill_gain
-from .lags import NEIGHBOUR_LAGS, NO_LAGS, choose_lags
+from .factorisation import complete_low_rank, factorise_lagged, fill_gain
+from .lags import NEIGHBOUR_LAGS, NO_LAGS, choose_lags, lag_copies
 from .masks import observed_entries, observed_mask
-from .result import Completion
+from .result import MAX_GAIN, Completion
 from .settings import COMPLETIONS, MISSING, MeasurementSettings
-from .soft_impute import complete_measurements
+from .soft_impute import complete_measurements, soft_impute_lagged
 
 __all__ = ["COMPLETIONS", "Completion", "MAX_GAIN", "MISSING", "MeasurementSettings",
            "NEIGHBOUR_LAGS", "NO_LAGS", "choose_lags", "complete", "complete_low_rank",
@@ -53,9 +53,7 @@ def complete(W, K, settings):
     Returns
     -------
     Completion
-        With ``method`` the completion that ran (``auto`` resolved) and ``fill_gain``
-        under the rank-3K motion ``M_hat`` of the completed W
-        (:func:`nrsfm.stages.measurement.measure`: the motion the later stages use).
+        With ``method`` the completion that ran (``auto`` resolved).
 
     Raises
     ------
@@ -68,18 +66,19 @@ def complete(W, K, settings):
         When the completion stopped at its iteration cap before converging
         (``W-completion-cap``, ``docs/warnings.md``).
     """
-    observed = observed_mask(W)
-    lags = (choose_lags(observed, 3 * K) if settings.lags == "auto"
+    Wz, observed = observed_entries(W)
+    rank = 3 * K
+    lags = (choose_lags(observed, rank) if settings.lags == "auto"
             else tuple(settings.lags))
+    copies = lag_copies(*observed.shape, lags)
     method = settings.completion
     if method == "auto":                  # the full SVD is cheap exactly where lags are due
-        method = "soft_impute" if len(lags) > 1 else "factorisation"
+        method = "soft_impute" if len(copies.lags) > 1 else "factorisation"
     if method == "soft_impute":
-        result = complete_measurements(W, observed, lags=lags)
+        result = soft_impute_lagged(Wz, observed, copies)
     else:
-        result = complete_low_rank(W, 3 * K, observed, lags=lags)
+        result = factorise_lagged(Wz, observed, rank, copies)
     if not result.converged:
         warnings.warn(text("W-completion-cap", n_iter=result.n_iter), RuntimeWarning,
                       stacklevel=3)
-    M_hat = measure(result.W, K).factorization.M_hat
-    return dataclasses.replace(result, fill_gain=fill_gain(M_hat, result.observed))
+    return result

@@ -18,13 +18,22 @@ over the frames that observe point p (inverted once per observation pattern); wi
 every frame's two rows and offset are an (r + 1) x (r + 1) system over the points the
 frame observes. Both steps are batched Gram products, so one iteration costs O(|Omega| r^2):
 no SVD after the start, a rank-r truncated SVD (through the smaller Gram matrix) of the
-mean-filled W. Two measures keep the alternation from crawling (Buchanan & Fitzgibbon,
-CVPR 2005, on its slow convergence): the factors are re-balanced after every sweep
-(``M'M = BB'``, the split of MB with the least ridge), and the sweep is extrapolated by
-``k^(1/3)`` when that lowers the cost (Bro's line search for alternating least squares).
+mean-filled W. Three measures keep the alternation from crawling (Buchanan & Fitzgibbon,
+CVPR 2005, on its slow convergence). The data term has two exact symmetries that only the
+small ridge pins, and plain alternation moves along them by a fraction of order
+``lam / ||A_p||`` per sweep: ``M -> M G``, ``B -> G^-1 B`` (G invertible), and the offset's
+``B -> B - c 1'``, ``t -> t + M c``. Both are fixed exactly in every sweep: after the
+M-step the factors are re-balanced (``M'M = BB'``, the split of MB with the least ridge),
+after the B-step the mean of B over the points is moved into t (the shift with the least
+ridge). Without the second the alternation crawled on the synthetic videos with late
+tracks (the data term flat to 2e-5 over 500 sweeps, the ridge shrinking by 1e-5 and the
+mean of B by 0.2 % a sweep): 306 iterations on the 100-frame face video and 430-966 on the
+12-frame one of the tests, against 7-14 with it. The sweep is also extrapolated by ``k^(1/3)`` when that lowers the cost (Bro's line search for
+alternating least squares). The stopping test, the objective's relative decrease in one
+iteration below ``tol``, is scale-free (W times c: the same iterations).
 
 Tracks seen in a few frames only: a track's fill is an extrapolation whose noise gain
-(:func:`~nrsfm.stages.completion.gain.fill_gain`) grows without bound as its observed
+(:func:`fill_gain`) grows without bound as its observed
 frames shrink. M and t are fitted on the *determined* tracks (gain <= ``MAX_GAIN``,
 re-chosen up to ``MAX_ROUNDS`` times); every track's b_p is then solved with that M.
 ``Completion.determined()`` says which tracks the data pin down; the others are filled,
@@ -45,12 +54,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gain import MAX_GAIN, fill_gain, mask_groups, normal_matrices
-from .lags import NO_LAGS, average_copies, check_lags, lag, lag_index
+from .lags import NO_LAGS, lag_copies
 from .masks import observed_entries
-from .result import Completion
+from .result import MAX_GAIN, Completion
 
-__all__ = ["LAM_FRACTION", "complete_low_rank"]
+__all__ = ["LAM_FRACTION", "complete_low_rank", "factorise_lagged", "fill_gain",
+           "mask_groups", "normal_matrices"]
 
 #: Ridge as a fraction of sigma_1 (see the module docstring).
 LAM_FRACTION = 1e-4
@@ -58,6 +67,56 @@ LAM_FRACTION = 1e-4
 MAX_ROUNDS = 4
 #: Determined tracks per dimension of b_p needed to estimate the prior of the short tracks.
 PRIOR_SAMPLES = 10
+
+
+def mask_groups(obs):
+    """Points that share an observation pattern of ``obs`` (F, P): ``(patterns (U, F)
+    bool, index (P,))``, with ``patterns[index] == obs.T``."""
+    packed = np.packbits(obs.T, axis=1)
+    _, first, index = np.unique(packed, axis=0, return_index=True, return_inverse=True)
+    return obs[:, first].T, index.ravel()
+
+
+def normal_matrices(M, patterns):
+    """``(Mf, A)``: M (2F, r) as (F, 2, r) row pairs, and the (U, r, r) normal matrices
+    ``A_u = sum_{f observed} M_f' M_f`` of the observation patterns (U, F) bool."""
+    F2, r = M.shape
+    Mf = M.reshape(F2 // 2, 2, r)
+    G = np.einsum("fir,fis->frs", Mf, Mf).reshape(F2 // 2, r * r)
+    return Mf, (patterns.astype(float) @ G).reshape(-1, r, r)
+
+
+def fill_gain(M, observed):
+    """Noise gain of each track's filled entries (unitless, scale-free).
+
+    A point's structure column b_p is fitted to the frames that observe it, normal matrix
+    ``A_p = sum_{f observed} M_f' M_f``; the fill ``M_f b_p`` of a frame then has
+    covariance ``sigma^2 M_f A_p^{-1} M_f'`` for white measurement noise sigma. The gain
+    is ``max_f sqrt(lambda_max(M_f A_p^{-1} M_f'))`` over all frames: at most 1 inside the
+    observed frames of a complete track, large when a short track is extrapolated.
+
+    Parameters
+    ----------
+    M : (2F, r) ndarray
+    observed : (F, P) bool ndarray
+
+    Returns
+    -------
+    gain : (P,) ndarray
+    """
+    F2 = M.shape[0]
+    observed = np.asarray(observed, dtype=bool)
+    if observed.shape[0] * 2 != F2:
+        raise ValueError(f"observed must have shape (F, P) with 2F = {F2}; "
+                         f"got {observed.shape}")
+    patterns, index = mask_groups(observed)
+    Mf, A = normal_matrices(M, patterns)
+    Ai = np.linalg.pinv(A, hermitian=True)                    # (U, r, r)
+    lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf)           # (U, F, 2, 2)
+    gain = np.sqrt(np.clip(np.linalg.eigvalsh(lev)[..., -1], 0.0, None).max(axis=1))
+    w = np.linalg.eigvalsh(A)
+    gain[w[:, 0] <= 1e-12 * w[:, -1]] = np.inf                # b_p not determined at all
+    return gain[index]
 
 
 def _truncated_svd(A, r):
@@ -130,27 +189,31 @@ def _balance(M, B):
 def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     """Alternate the M- and B-steps from M, t. Returns ``(M, t, costs, converged)``.
 
-    Each sweep is followed by an extrapolation of (M, t) along the sweep's step by
+    Every B-step is followed by the offset's gauge (the mean of B over the points moved
+    into t: the data term is unchanged, the ridge lowered; see the module docstring), and
+    each sweep by an extrapolation of (M, t) along the sweep's step by
     ``k^(1/3)`` (iteration k), kept when it lowers the cost (the line search Bro uses to
     accelerate alternating least squares, 1998): plain alternation crawls along the
     shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
     """
     groups = mask_groups(obs)
 
-    def f(M, t):                                              # B-step and the cost
+    def f(M, t):                                    # B-step, the gauge, and the cost
         B, data = _solve_structure(Wz, groups, M, t, lam)
-        return B, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
+        mean = B.mean(axis=1)
+        B, t = B - mean[:, None], t + M @ mean
+        return B, t, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
 
-    B, c = f(M, t)
+    B, t, c = f(M, t)
     cost = []
     for k in range(1, max(max_iter, 1) + 1):
         M1, t1, _ = _solve_motion(Wz, obs, B, lam)
         M1 = _balance(M1, B)
-        B1, c1 = f(M1, t1)
+        B1, t1, c1 = f(M1, t1)
         d = k ** (1.0 / 3.0)
         if d > 1.0:
             Me, te = M + d * (M1 - M), t + d * (t1 - t)
-            Be, ce = f(Me, te)
+            Be, te, ce = f(Me, te)
             if ce < c1:
                 M1, t1, B1, c1 = Me, te, Be, ce
         cost.append(c1)
@@ -197,6 +260,16 @@ def complete_low_rank(W, rank, observed=None, *, lags=NO_LAGS, lam_fraction=LAM_
         Bad shapes or constants, rank out of range, too sparse observations.
     """
     Wz, obs = observed_entries(W, observed)
+    copies = lag_copies(*obs.shape, lags)
+    return factorise_lagged(Wz, obs, rank, copies, lam_fraction=lam_fraction, tol=tol,
+                            max_iter=max_iter)
+
+
+def factorise_lagged(Wz, obs, rank, copies, *, lam_fraction=LAM_FRACTION, tol=1e-6,
+                     max_iter=300):
+    """:func:`complete_low_rank` of checked input: ``Wz`` (2F, P) zero where not ``obs``
+    (F, P) (:func:`~nrsfm.stages.completion.masks.observed_entries`), the lagged matrix's
+    :class:`~nrsfm.stages.completion.lags.Copies`."""
     F, P = obs.shape
     r = int(rank)
     if not 1 <= r < min(2 * F, P):
@@ -205,20 +278,18 @@ def complete_low_rank(W, rank, observed=None, *, lags=NO_LAGS, lam_fraction=LAM_
         raise ValueError(f"lam_fraction must be positive; got {lam_fraction!r}")
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
-    lags = check_lags(lags)
-    idx = lag_index(F, lags)
-    Hz, obs_h = lag(Wz, idx), lag(obs, idx)
+    Hz, obs_h = Wz.ravel()[copies.gather], obs.ravel()[copies.gather_mask]
     M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
     gain_h = fill_gain(M, obs_h)
     B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
-    fit = average_copies(M @ B + t[:, None], idx)
-    o2 = np.repeat(obs, 2, axis=0)
-    j = lags.index(0)
-    gain = gain_h[j * P:(j + 1) * P]
-    return Completion(W=np.where(o2, Wz, fit), observed=obs, method="factorisation",
-                      lags=lags, rank=r, n_iter=len(cost), converged=converged,
-                      fill_gain=gain, history=dict(cost=np.asarray(cost)), lam=lam, M=M,
-                      B=B, t=t)
+    fit = M @ B + t[:, None]
+    fit = (np.bincount(copies.target, fit.ravel()[copies.order], Wz.size)
+           / copies.counts).reshape(Wz.shape)                 # mean of each entry's copies
+    j = copies.lags.index(0)
+    return Completion(W=np.where(np.repeat(obs, 2, axis=0), Wz, fit), observed=obs,
+                      method="factorisation", lags=copies.lags, rank=r, n_iter=len(cost),
+                      converged=converged, fill_gain=gain_h[j * P:(j + 1) * P],
+                      history=dict(cost=np.asarray(cost)), lam=lam, M=M, B=B, t=t)
 
 
 def _posterior_structure(Wz, obs, M, t, B, determined):

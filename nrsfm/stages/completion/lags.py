@@ -13,9 +13,12 @@ trajectories are smooth); ``(0,)`` is W itself (frames in no particular order).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["LAG_RATIO", "NEIGHBOUR_LAGS", "NO_LAGS", "check_lags", "choose_lags"]
+__all__ = ["Copies", "LAG_RATIO", "NEIGHBOUR_LAGS", "NO_LAGS", "check_lags", "choose_lags",
+           "lag_copies"]
 
 #: A frame beside its two neighbours: what :func:`choose_lags` returns when a frame's own
 #: observations are too few for the rank (MoCap-sized W), and the default of
@@ -27,6 +30,36 @@ NO_LAGS = (0,)
 #: :func:`choose_lags`: lags when a frame observes fewer than this many points per unknown
 #: of its rows (r + 1).
 LAG_RATIO = 2
+
+
+@dataclass(frozen=True)
+class Copies:
+    """The entries of the lagged matrix H (2F, n P) of W (2F, P) as copies of W's entries,
+    for lags ``d_1, ..., d_n``: index arrays, so that a completion lags a matrix, and
+    averages the copies of each entry back, with one numpy expression each.
+
+    Attributes
+    ----------
+    lags : tuple of int
+    gather : (2F, n P) int ndarray
+        ``H = W.ravel()[gather]``: the flat index in W of each entry of H.
+    gather_mask : (F, n P) int ndarray
+        The same for the (F, P) observation mask: ``observed.ravel()[gather_mask]``.
+    order, target : (2F n P,) int ndarray
+        The entries of H lag by lag, and the flat index in W of each of them: the mean of
+        the copies of each entry of W, from a matrix L shaped like H, is
+        ``np.bincount(target, L.ravel()[order], W.size) / counts`` (W's shape), summed
+        lag by lag.
+    counts : (2F P,) ndarray
+        How many copies each entry of W has in H (an edge frame is repeated).
+    """
+
+    lags: tuple
+    gather: np.ndarray
+    gather_mask: np.ndarray
+    order: np.ndarray
+    target: np.ndarray
+    counts: np.ndarray
 
 
 def check_lags(lags):
@@ -61,26 +94,18 @@ def choose_lags(observed, rank):
     return NEIGHBOUR_LAGS if fewest < LAG_RATIO * (int(rank) + 1) else NO_LAGS
 
 
-def lag_index(F, lags):
-    """(len(lags), F) frame index of each lagged copy (edges repeated)."""
-    return np.clip(np.arange(F)[None, :] + np.asarray(lags)[:, None], 0, F - 1)
-
-
-def lag(A, idx):
-    """The lagged matrix ``[S_d A]_d`` (n_rows, n_lags P) of A (n_rows, P) whose rows come
-    in equal groups per frame (W: 2 rows per frame; the mask (F, P): 1); ``idx`` from
-    :func:`lag_index`."""
-    F, P = idx.shape[1], A.shape[1]
-    Af = A.reshape(F, -1, P)
-    return np.concatenate([Af[i].reshape(-1, P) for i in idx], axis=1)
-
-
-def average_copies(L, idx):
-    """(2F, P): each entry of W as the mean of its copies in the lagged L (2F, n_lags P)."""
-    n, F = idx.shape
-    P = L.shape[1] // n
-    acc, counts = np.zeros((F, 2, P)), np.zeros(F)
-    for j, i in enumerate(idx):
-        np.add.at(acc, i, L[:, j * P:(j + 1) * P].reshape(F, 2, P))
-        np.add.at(counts, i, 1.0)
-    return (acc / counts[:, None, None]).reshape(2 * F, P)
+def lag_copies(F, P, lags):
+    """The :class:`Copies` of the lagged matrix of a (2F, P) W for ``lags`` (checked by
+    :func:`check_lags`)."""
+    lags = check_lags(lags)
+    frames = np.clip(np.arange(F)[:, None] + np.asarray(lags)[None, :], 0, F - 1)  # (F, n)
+    points = np.arange(P)
+    rows = 2 * frames[:, None, :, None] + np.arange(2)[None, :, None, None]   # (F, 2, n, 1)
+    gather = (rows * P + points).reshape(2 * F, -1)
+    n = len(lags)
+    order = np.arange(gather.size).reshape(2 * F, n, P).transpose(1, 0, 2).ravel()
+    target = gather.ravel()[order]
+    return Copies(lags=lags, gather=gather,
+                  gather_mask=(frames[:, :, None] * P + points).reshape(F, -1),
+                  order=order, target=target,
+                  counts=np.bincount(target, minlength=2 * F * P).astype(float))

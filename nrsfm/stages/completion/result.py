@@ -6,9 +6,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .gain import MAX_GAIN
+__all__ = ["Completion", "MAX_GAIN"]
 
-__all__ = ["Completion"]
+#: A track is "determined" when its fill amplifies measurement noise at most this much
+#: (:func:`~nrsfm.stages.completion.factorisation.fill_gain`): a track seen in a few
+#: frames only is filled by an extrapolation whose noise gain grows without bound as its
+#: observed frames shrink; above this gain the data do not pin the track down (it is
+#: *undetermined*: filled, but its 3D cannot be trusted).
+MAX_GAIN = 3.0
 
 
 @dataclass
@@ -34,11 +39,11 @@ class Completion:
     converged : bool
         False when the completion stopped at its iteration cap.
     fill_gain : (P,) ndarray or None
-        How much each track's filled entries amplify measurement noise
-        (:func:`~nrsfm.stages.completion.gain.fill_gain`). From :func:`complete`: under the
-        rank-3K motion ``M_hat`` of the completed W, the one the later stages use. From
-        the factorisation alone: under its own motion M (lag-0 columns). None from
-        soft-impute alone.
+        How much each track's filled entries amplify measurement noise under the
+        factorisation's own motion M, lag-0 columns
+        (:func:`~nrsfm.stages.completion.factorisation.fill_gain`); None from soft-impute.
+        :attr:`nrsfm.Reconstruction.fill_gain` is the gain under the rank-3K motion
+        ``M_hat`` that the later stages use, for either completion.
     history : dict of ndarrays
         Per iteration. Soft-impute: ``tau`` and ``change`` (relative change of the filled
         entries); factorisation: ``cost`` (objective / (1/2 ||P_Omega(W - mean)||^2)).
@@ -78,8 +83,9 @@ class Completion:
         """(P,) bool: tracks whose filled entries amplify noise at most ``max_gain`` x
         (needs :attr:`fill_gain`)."""
         if self.fill_gain is None:
-            raise ValueError("determined() needs fill_gain, which soft-impute alone does "
-                             "not compute; use complete() or the factorisation")
+            raise ValueError("determined() needs fill_gain, which soft-impute does not "
+                             "compute; use the factorisation, or "
+                             "nrsfm.Reconstruction.undetermined")
         return self.fill_gain <= max_gain
 
     def rms_residual(self):

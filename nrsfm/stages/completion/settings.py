@@ -38,8 +38,7 @@ class MeasurementSettings:
         time-lagged matrix with a full SVD per iteration
         (:func:`nrsfm.stages.completion.soft_impute.complete_measurements`). ``auto``
         (default): ``soft_impute`` where the lags rule asks for time lags (few points per
-        frame for the rank: a small W such as MoCap's, where the full SVD is cheap and the
-        lagged factorisation measured 2-10x slower and stops at its iteration cap), else
+        frame for the rank: a small W such as MoCap's, where the full SVD is cheap), else
         ``factorisation``. Measurements: ``docs/missing_data_scale.md``.
     lags : "auto" or tuple of int
         Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule

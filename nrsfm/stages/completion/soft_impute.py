@@ -34,11 +34,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lags import NEIGHBOUR_LAGS, average_copies, check_lags, lag, lag_index
-from .masks import observed_mask
+from .lags import NEIGHBOUR_LAGS, lag_copies
+from .masks import observed_entries
 from .result import Completion
 
-__all__ = ["TAU_FRACTION", "complete_measurements"]
+__all__ = ["TAU_FRACTION", "complete_measurements", "soft_impute_lagged"]
 
 #: Final threshold as a fraction of sigma_1 (see the module docstring).
 TAU_FRACTION = 1e-3
@@ -50,11 +50,12 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
 
     Parameters
     ----------
-    W : (2F, P) array_like
-        Measurements; NaN marks a missing entry (when ``observed`` is None).
+    W : (2F, P) or (F, 2, P) array_like
+        Measurements; NaN marks a missing entry (a point is observed in a frame when both
+        of its coordinates are finite).
     observed : (F, P) bool array_like, optional
-        True where observed; default from the NaN pattern of W
-        (:func:`~nrsfm.stages.completion.masks.observed_mask`).
+        Further restricts the observation mask
+        (:func:`~nrsfm.stages.completion.masks.observed_entries`).
     tau : float, optional
         Final singular value threshold in W's units; default ``tau_fraction * sigma_1``.
     tau_fraction : float
@@ -79,23 +80,30 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
     ValueError
         Bad shapes, a frame or point with too few observations, bad constants.
     """
-    W, observed = _checked(W, observed)
+    Wz, observed = observed_entries(W, observed)
+    copies = lag_copies(*observed.shape, lags)
+    return soft_impute_lagged(Wz, observed, copies, tau=tau, tau_fraction=tau_fraction,
+                              n_stages=n_stages, tol=tol, max_iter=max_iter)
+
+
+def soft_impute_lagged(Wz, observed, copies, *, tau=None, tau_fraction=TAU_FRACTION,
+                       n_stages=8, tol=1e-6, max_iter=500):
+    """:func:`complete_measurements` of checked input: ``Wz`` (2F, P) zero where not
+    ``observed`` (F, P) (:func:`~nrsfm.stages.completion.masks.observed_entries`), the
+    lagged matrix's :class:`~nrsfm.stages.completion.lags.Copies`."""
     if not (np.isfinite(tau_fraction) and tau_fraction > 0):
         raise ValueError(f"tau_fraction must be positive; got {tau_fraction!r}")
-    lags = check_lags(lags)
     if n_stages < 1 or max_iter < 1:
         raise ValueError(f"n_stages and max_iter must be >= 1; got {n_stages}, {max_iter}")
     obs2 = np.repeat(observed, 2, axis=0)                       # (2F, P)
-    result = dict(observed=observed, method="soft_impute", lags=lags)
+    result = dict(observed=observed, method="soft_impute", lags=copies.lags)
     if obs2.all():
-        return Completion(W=W, tau=0.0, rank=int(np.linalg.matrix_rank(W)), n_iter=0,
+        return Completion(W=Wz, tau=0.0, rank=int(np.linalg.matrix_rank(Wz)), n_iter=0,
                           converged=True, history=dict(tau=np.zeros(0), change=np.zeros(0)),
                           **result)
-    Wz = np.where(obs2, W, 0.0)
     t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
-    Z = np.where(obs2, W, t)                                    # mean fill
-    idx = lag_index(W.shape[0] // 2, lags)                      # (n_lags, F)
-    H = lag(Z, idx)
+    Z = np.where(obs2, Wz, t)                                   # mean fill
+    H = Z.ravel()[copies.gather]
     sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
     if not sigma1 > 0:
         raise ValueError("the observed entries of W have no spread: nothing to complete")
@@ -103,28 +111,12 @@ def complete_measurements(W, observed=None, *, tau=None, tau_fraction=TAU_FRACTI
     if not (np.isfinite(tau_final) and tau_final > 0):
         raise ValueError(f"tau must be positive; got {tau!r}")
     taus = np.geomspace(max(sigma1 / 10, tau_final), tau_final, n_stages)
-    rank, n_iter, converged, history = _continuation(Z, ~obs2, idx, taus, tol, max_iter)
+    rank, n_iter, converged, history = _continuation(Z, ~obs2, copies, taus, tol, max_iter)
     return Completion(W=Z, tau=float(tau_final), rank=rank, n_iter=n_iter,
                       converged=converged, history=history, **result)
 
 
-def _checked(W, observed):
-    """(W as a float (2F, P) copy with NaN where unobserved, its (F, P) mask)."""
-    W = np.array(W, dtype=float, copy=True)
-    if W.ndim != 2 or W.shape[0] % 2:
-        raise ValueError(f"W must have shape (2F, P); got {W.shape}")
-    F, P = W.shape[0] // 2, W.shape[1]
-    if observed is None:
-        return W, observed_mask(W)
-    observed = np.asarray(observed, dtype=bool)
-    if observed.shape != (F, P):
-        raise ValueError(f"observed must have shape (F, P) = ({F}, {P}); "
-                         f"got {observed.shape}")
-    W[np.repeat(~observed, 2, axis=0)] = np.nan
-    return W, observed & observed_mask(W)
-
-
-def _continuation(Z, missing, idx, taus, tol, max_iter):
+def _continuation(Z, missing, copies, taus, tol, max_iter):
     """Soft-impute over the thresholds ``taus``, warm-started, filling ``Z[missing]`` in
     place. Returns ``(rank, n_iter, converged, history)``."""
     hist_tau, hist_change = [], []
@@ -134,12 +126,14 @@ def _continuation(Z, missing, idx, taus, tol, max_iter):
         converged = False
         while n_iter < max_iter:
             n_iter += 1
-            H = lag(Z, idx)
+            H = Z.ravel()[copies.gather]
             t = H.mean(axis=1, keepdims=True)                   # free row offsets
             U, s, Vt = np.linalg.svd(H - t, full_matrices=False)
             s = np.maximum(s - tau_s, 0.0)                      # nuclear-norm prox
             rank = int(np.count_nonzero(s))
-            L = average_copies((U[:, :rank] * s[:rank]) @ Vt[:rank] + t, idx)
+            fit = (U[:, :rank] * s[:rank]) @ Vt[:rank] + t
+            L = (np.bincount(copies.target, fit.ravel()[copies.order], Z.size)
+                 / copies.counts).reshape(Z.shape)               # mean of each entry's copies
             change = (np.linalg.norm(L[missing] - Z[missing])
                       / max(np.linalg.norm(Z), 1e-300))
             Z[missing] = L[missing]

@@ -196,6 +196,26 @@ class RotationResult:
     def n_triplets(self):
         return self.G.shape[0]
 
+    def candidates(self):
+        """Rotation sets the shape stage may use: the stage's own result, then the best
+        triplet's (:mod:`nrsfm.stages.selection` keeps the one whose shape has the lower
+        shape objective).
+
+        The averaged rotations (paper Sec. 3.1) are closer to the truth on the benchmark,
+        but the shapes they give are not always better (stretch: e3d 1.07 x that of the
+        best single triplet's rotations, ground-truth rotations 1.02 x).
+
+        Returns
+        -------
+        list of (name, (F, 3, 3) ndarray)
+            One entry when the stage used a single triplet.
+        """
+        out = [(self.strategy, self.rotations)]
+        if self.G.shape[0] > 1:
+            single, _ = resolve_depth_signs(self.per_triplet[0])
+            out.append(("single_triplet", single))
+        return out
+
 
 # --------------------------------------------------------------------------- entry point
 def check_motion(M_hat, K):

@@ -133,6 +133,19 @@ class ShapeResult:
     wnn_objective: Optional[float] = None
 
     @property
+    def prior_objective(self):
+        """The shape prior's objective at this result (None if it has none): ``1/2 ||W -
+        R X||^2 + sum_i theta_i sigma_i(X#)`` (Eq. 10 with the weighted nuclear norm) for
+        the bilinear solver, the last ``cost`` of the history otherwise; what the choice
+        between rotation candidates compares (:mod:`nrsfm.stages.selection`)."""
+        value = self.wnn_objective
+        if value is None:
+            history = self.history or {}
+            cost = history.get("cost") if isinstance(history, dict) else None
+            value = None if cost is None or len(cost) == 0 else cost[-1]
+        return None if value is None or not np.isfinite(value) else float(value)
+
+    @property
     def grad_norm(self):
         """Relative gradient norm (:attr:`optimality` where ``optimality_kind`` is
         ``"gradient"``); None for the solvers whose optimality is measured otherwise."""
