@@ -105,7 +105,7 @@ def _normalise_triplet(G, M_hat):
     return G / s if s > 0 else G
 
 
-def _levenberg_marquardt(G0, M, weights, max_iter, tol):
+def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0):
     """Levenberg-Marquardt on Dai's residuals (normal equations, Nielsen's damping rule).
 
     Returns (G, cost, iterations). About 0.3 ms per iteration at pickup's size, ten times
@@ -116,7 +116,7 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol):
     r, J = triplet_residuals(G0, M, weights, jac=True)
     cost = float(r @ r)
     A, grad = J.T @ J, J.T @ r
-    lam = LAM0 * float(np.max(np.diag(A))) if A.size else 1.0
+    lam = lam0 * float(np.max(np.diag(A))) if A.size else 1.0
     nu = 2.0
     it = 0
     for it in range(1, max_iter + 1):
@@ -152,7 +152,8 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol):
     return g.reshape(shape), cost, it
 
 
-def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-10):
+def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-10,
+                   lam0=LAM0):
     """Minimise Dai's cost over G (3K x 3), started from ``G0``.
 
     Parameters
@@ -168,6 +169,9 @@ def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-1
         ``scipy.optimize.least_squares(method="lm")`` (same minima, about 10x slower).
         ``lbfgs``: scipy L-BFGS-B on the cost with the analytic gradient ``2 J'r``: the
         same minimum from the same start, but thousands of iterations (seconds).
+    lam0 : float
+        ``lm``: initial damping, times max diag(J'J) (:data:`LAM0` for cold starts; a
+        start already near a minimum can take a smaller one).
 
     Returns
     -------
@@ -186,7 +190,7 @@ def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-1
     t0 = time.perf_counter()
     cost0 = triplet_cost(G0, M, weights)
     if method == "lm":
-        G, _, nit = _levenberg_marquardt(G0, M, weights, max_iter or 500, tol)
+        G, _, nit = _levenberg_marquardt(G0, M, weights, max_iter or 500, tol, lam0)
     elif method == "minpack":
         def fun(g):
             return triplet_residuals(g.reshape(shape), M, weights)
@@ -242,6 +246,10 @@ class CorrectiveResult:
 
 #: penalties of :func:`penalized_gram` tried, in order, by ``starts="search"``
 SEARCH_LAMBDAS = (1e1, 1e2)
+#: the relaxation's tolerance in the search: its Gram matrix is only a start that the
+#: refinement takes to the minimum (1e-7 -> 1e-5: the rotations of the 8 MoCap sequences
+#: move by at most 6e-7 after one global alignment, ``docs/rotation_stage.md`` section 8)
+SEARCH_SDP_TOL = 1e-5
 
 
 def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
@@ -314,8 +322,8 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
     n_random = 0
     cache = {}
     for lam in lams:
-        Q, pinfo = penalized_gram(M, K, lam=lam, solver=sdp_solver, return_info=True,
-                                  _cache=cache)
+        Q, pinfo = penalized_gram(M, K, lam=lam, solver=sdp_solver, tol=SEARCH_SDP_TOL,
+                                  return_info=True, _cache=cache)
         info["penalized"].append(pinfo)
         add(f"relaxed(lam={lam:g})", triplets_from_gram(Q, "eig")[0])
         if done():
