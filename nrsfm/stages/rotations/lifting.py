@@ -83,25 +83,27 @@ def _nearest_rotation(u1, u2):
 # --------------------------------------------------------------------------- registration
 def _register_one(R_ref, R_k, w, max_iter=20):
     """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
+    F = len(R_k)
     # Start from the third rows (a frame's depth reversal leaves them unchanged):
     # maximise sum_f w_f r3_ref . (R r3_k)  ->  N = sum_f w_f r3_ref r3_k'.
-    N = np.einsum("f,fi,fj->ij", w, R_ref[:, 2], R_k[:, 2])
+    N = (R_ref[:, 2] * w[:, None]).T @ R_k[:, 2]
     R = procrustes_so3(N)
-    flips = np.zeros(len(R_k), bool)
+    flips = np.zeros(F, bool)
+    FR_k = FLIP @ R_k
+    top_k, wR_ref = R_k[:, :2].reshape(2 * F, 3), (R_ref * w[:, None, None]).reshape(3 * F, 3)
     for _ in range(max_iter):
-        X = R_k @ R.T                                               # R_k R_reg'
-        # flipping rows 1-2 of X changes trace(R_ref' X) by -2 (d1 + d2)
-        d12 = np.einsum("fij,fij->f", R_ref[:, :2], X[:, :2])
+        # flipping rows 1-2 of X = R_k R_reg' changes trace(R_ref' X) by -2 (d1 + d2)
+        d12 = np.einsum("fij,fij->f", R_ref[:, :2], (top_k @ R.T).reshape(F, 2, 3))
         new_flips = d12 < 0
-        S = np.where(new_flips[:, None, None], FLIP @ R_k, R_k)
+        S = np.where(new_flips[:, None, None], FR_k, R_k)
         # refit: maximise sum_f w_f trace(R_ref' S R') = trace(R' N), N = sum w S' R_ref
-        N = np.einsum("f,fki,fkj->ij", w, S, R_ref).T
+        N = (S.reshape(3 * F, 3).T @ wR_ref).T
         R_new = procrustes_so3(N)
         if np.array_equal(new_flips, flips) and np.allclose(R_new, R, atol=1e-12):
             flips, R = new_flips, R_new
             break
         flips, R = new_flips, R_new
-    S = np.where(flips[:, None, None], FLIP @ R_k, R_k)
+    S = np.where(flips[:, None, None], FR_k, R_k)
     cost = float(np.sum(w * np.sum((R_ref - S @ R.T) ** 2, axis=(1, 2))))
     return R, flips, cost
 
