@@ -174,6 +174,7 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
     Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
     U = np.zeros((n, n))
     Z, U, rho = _warm_start(cache, Z, U, rho)
+    upper, lower = iu[0] * n + iu[1], iu[1] * n + iu[0]    # vech entries in Q.ravel()
     status, it, n_fact = "max_iter", 0, 0
     Hc = None
     for it in range(1, max_iter + 1):
@@ -182,13 +183,13 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
             n_fact += 1
             Hc = _solve(L, c)                          # H^-1 c
             cHc = c @ Hc
-        rhs = rho * ((Z - U)[iu] * dw) - a * t
+        rhs = rho * (np.take(Z - U, upper) * dw) - a * t
         y = _solve(L, rhs)
         mu = (c @ y - 2.0 * F) / cHc
-        v = y - mu * Hc
-        Qm = np.zeros((n, n))
-        Qm[iu] = v / dw
-        Qm = Qm + np.triu(Qm, 1).T
+        v = (y - mu * Hc) / dw
+        Qm = np.empty(n * n)
+        Qm[upper], Qm[lower] = v, v                   # the symmetric matrix of vech v
+        Qm = Qm.reshape(n, n)
         w, E = np.linalg.eigh(Qm + U)
         Z_old = Z
         Z = (E * np.clip(w, 0, None)) @ E.T
