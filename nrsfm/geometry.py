@@ -10,8 +10,6 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -77,14 +75,36 @@ def align_similarity(X_est, X_gt):
 
 
 def _median_start(samples, mask):
-    """Element-wise median of the kept samples, projected onto SO(3) (Lee & Civera)."""
-    S = np.where(mask[..., None, None], samples, np.nan)
-    with np.errstate(all="ignore"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(S, axis=0)
-    med = np.where(np.isfinite(med), med, np.eye(3))
+    """Element-wise median of the kept samples, projected onto SO(3) (Lee & Civera).
+
+    The median of the n_f kept values per entry: the middle one of the sorted values, or
+    the mean of the two middle ones (``numpy.nanmedian``'s value, without its per-slice
+    overhead); a frame with no kept sample gets the identity."""
+    S = np.sort(np.where(mask[..., None, None], samples, np.inf), axis=0)
+    n = mask.sum(axis=0)
+    lo = np.maximum(n - 1, 0) // 2
+    hi = np.where(n > 0, n // 2, 0)
+    a = np.take_along_axis(S, lo[None, :, None, None], axis=0)[0]
+    b = np.take_along_axis(S, hi[None, :, None, None], axis=0)[0]
+    med = np.where((n > 0)[:, None, None], (a + b) / 2.0, np.eye(3))
     return project_to_so3(med)
+
+
+def _log_so3(R):
+    """Rotation vectors of rotations (..., 3, 3): ``theta u`` with ``theta =
+    atan2(|s|, (tr R - 1) / 2)``, ``s = sin(theta) u`` the skew part (accurate at small
+    angles); angles within 0.1 of pi (where the skew part loses the axis) by scipy."""
+    s = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                        R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    ns = np.linalg.norm(s, axis=-1)
+    theta = np.arctan2(ns, 0.5 * (np.einsum("...ii->...", R) - 1.0))
+    small = ns < 1e-8
+    factor = np.where(small, 1.0 + theta ** 2 / 6.0, theta / np.where(small, 1.0, ns))
+    v = s * factor[..., None]
+    far = theta > np.pi - 0.1
+    if far.any():
+        v[far] = Rotation.from_matrix(R[far]).as_rotvec()
+    return v
 
 
 def average_rotations(samples, mask=None, weights=None, max_iter=50, eps=1e-3,
@@ -125,7 +145,7 @@ def average_rotations(samples, mask=None, weights=None, max_iter=50, eps=1e-3,
         idx = np.flatnonzero(active)
         Ra = R[idx]
         rel = flat.reshape(F, m, 3, 3)[idx] @ Ra[:, None].transpose(0, 1, 3, 2)
-        v = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(len(idx), m, 3)
+        v = _log_so3(rel)
         nv = np.linalg.norm(v, axis=2)
         inv = wt[idx] / np.maximum(nv, 1e-12)
         den = inv.sum(axis=1)

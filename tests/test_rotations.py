@@ -63,6 +63,21 @@ def test_random_motion_exact_up_to_depth_reversal():
     assert rotation_error(Rfix, Rgt) < 1e-6
 
 
+def test_closed_form_lift_and_log_match_the_svd_and_scipy():
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal((2, 200, 3))
+    u /= np.linalg.norm(u, axis=2, keepdims=True)
+    L = np.stack([u[0], u[1], np.cross(u[0], u[1])], axis=1)
+    np.testing.assert_allclose(RT.lifting._nearest_rotation(u[0], u[1]),
+                               GEO.project_to_so3(L), atol=1e-12)
+    for angle in (1e-9, 1e-3, 1.0, 3.0, np.pi - 1e-6):
+        v = rng.standard_normal((50, 3))
+        v *= angle / np.linalg.norm(v, axis=1, keepdims=True)
+        R = Rotation.from_rotvec(v).as_matrix()
+        np.testing.assert_allclose(GEO._log_so3(R), Rotation.from_matrix(R).as_rotvec(),
+                                   atol=1e-9)
+
+
 def test_l1_average_robust_to_outliers():
     rng = np.random.default_rng(0)
     F, m = 30, 9

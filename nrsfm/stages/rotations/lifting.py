@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry import procrustes_so3, project_to_so3, rotation_angle
+from ...geometry import procrustes_so3, rotation_angle
 
 __all__ = ["DEGENERATE_CROSS", "DEGENERATE_ROW", "FLIP", "MIRROR", "filter_rotations",
            "register_rotations", "resolve_depth_signs", "rotations_from_triplets"]
@@ -58,37 +58,52 @@ def rotations_from_triplets(M_hat, G, handedness=1):
     U = B / np.where(ok_rows, norms, 1.0)[..., None]
     r3 = np.cross(U[:, :, 0], U[:, :, 1])
     valid = ok_rows.all(axis=2) & (np.linalg.norm(r3, axis=2) > DEGENERATE_CROSS)
-    L = np.concatenate([U, r3[:, :, None]], axis=2)
-    L = np.where(valid[..., None, None], L, np.eye(3))
-    R = project_to_so3(L)
+    R = np.broadcast_to(np.eye(3), valid.shape + (3, 3)).copy()
+    R[valid] = _nearest_rotation(U[valid][:, 0], U[valid][:, 1])
     coef = np.where(valid, coef, 0.0)
     if single:
         return R[0], coef[0], valid[0]
     return R, coef, valid
 
 
+def _nearest_rotation(u1, u2):
+    """Nearest rotation to ``[u1; u2; u1 x u2]`` (unit rows u1, u2, not parallel), in
+    closed form: the rows of its polar factor are ``(e1 +- e2) / sqrt 2`` and their cross
+    product, with ``e1, e2`` the unit vectors along ``u1 + u2`` and ``u1 - u2`` (the
+    symmetric orthogonalisation of the two rows). The same matrix as
+    :func:`nrsfm.geometry.project_to_so3` of that 3 x 3 matrix (whose determinant is
+    ``|u1 x u2|^2 > 0``) to rounding, without a 3 x 3 SVD per frame."""
+    p, q = u1 + u2, u1 - u2
+    e1 = p / np.linalg.norm(p, axis=-1, keepdims=True)
+    e2 = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    r1, r2 = (e1 + e2) / np.sqrt(2.0), (e1 - e2) / np.sqrt(2.0)
+    return np.stack([r1, r2, np.cross(r1, r2)], axis=-2)
+
+
 # --------------------------------------------------------------------------- registration
 def _register_one(R_ref, R_k, w, max_iter=20):
     """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
+    F = len(R_k)
     # Start from the third rows (a frame's depth reversal leaves them unchanged):
     # maximise sum_f w_f r3_ref . (R r3_k)  ->  N = sum_f w_f r3_ref r3_k'.
-    N = np.einsum("f,fi,fj->ij", w, R_ref[:, 2], R_k[:, 2])
+    N = (R_ref[:, 2] * w[:, None]).T @ R_k[:, 2]
     R = procrustes_so3(N)
-    flips = np.zeros(len(R_k), bool)
+    flips = np.zeros(F, bool)
+    FR_k = FLIP @ R_k
+    top_k, wR_ref = R_k[:, :2].reshape(2 * F, 3), (R_ref * w[:, None, None]).reshape(3 * F, 3)
     for _ in range(max_iter):
-        X = R_k @ R.T                                               # R_k R_reg'
-        # flipping rows 1-2 of X changes trace(R_ref' X) by -2 (d1 + d2)
-        d12 = np.einsum("fij,fij->f", R_ref[:, :2], X[:, :2])
+        # flipping rows 1-2 of X = R_k R_reg' changes trace(R_ref' X) by -2 (d1 + d2)
+        d12 = np.einsum("fij,fij->f", R_ref[:, :2], (top_k @ R.T).reshape(F, 2, 3))
         new_flips = d12 < 0
-        S = np.where(new_flips[:, None, None], FLIP @ R_k, R_k)
+        S = np.where(new_flips[:, None, None], FR_k, R_k)
         # refit: maximise sum_f w_f trace(R_ref' S R') = trace(R' N), N = sum w S' R_ref
-        N = np.einsum("f,fki,fkj->ij", w, S, R_ref).T
+        N = (S.reshape(3 * F, 3).T @ wR_ref).T
         R_new = procrustes_so3(N)
         if np.array_equal(new_flips, flips) and np.allclose(R_new, R, atol=1e-12):
             flips, R = new_flips, R_new
             break
         flips, R = new_flips, R_new
-    S = np.where(flips[:, None, None], FLIP @ R_k, R_k)
+    S = np.where(flips[:, None, None], FR_k, R_k)
     cost = float(np.sum(w * np.sum((R_ref - S @ R.T) ** 2, axis=(1, 2))))
     return R, flips, cost
 

@@ -18,12 +18,18 @@ from .lifting import filter_rotations, register_rotations, resolve_depth_signs, 
     rotations_from_triplets
 from .subspace import in_determined_subspace, lift_result
 
-__all__ = ["MIN_WINDOW_FRAMES", "RotationResult", "RotationSettings", "estimate_rotations",
-           "register_triplets", "rotations_from_triplet_set", "run_rotation_stage",
-           "triplets_on_subsets", "window_weights"]
+__all__ = ["MIN_WINDOW_FRAMES", "RotationResult", "RotationSettings", "WINDOW_LM",
+           "estimate_rotations", "register_triplets", "rotations_from_triplet_set",
+           "run_rotation_stage", "triplets_on_subsets", "window_weights"]
 
 #: at least this many frames in a window triplet
 MIN_WINDOW_FRAMES = 8
+#: the window refinements (:func:`triplets_on_subsets`) start from the best triplet, next
+#: to their own minimum: initial damping 1e-6 of max diag(J'J) (the cold starts' 1e-3 took
+#: 190 iterations on pickup's 11 windows; 1e-6: 120), J'J kept after steps below 1e-3 |G|
+#: and the relative decrease tolerance 1e-11 instead of 1e-10 (each window's rotations
+#: within 4e-7 of its exact minimum instead of 2e-6; ``docs/rotation_stage.md`` section 8)
+WINDOW_LM = dict(lam0=1e-6, reuse=1e-3, tol=1e-11)
 
 
 @dataclass(frozen=True)
@@ -143,7 +149,8 @@ def triplets_on_subsets(M_hat, G0, weights, method="lm"):
     """
     Gs, costs = [], []
     for w in weights:
-        G, inf = refine_triplet(G0, M_hat, weights=w, method=method)
+        G, inf = refine_triplet(G0, M_hat, weights=w, method=method,
+                                **(WINDOW_LM if method == "lm" else {}))
         Gs.append(G)
         costs.append(inf["cost"] / w.sum())
     return np.stack(Gs), np.array(costs)
