@@ -61,12 +61,7 @@ def triplet_residuals(G, M_hat, weights=None, jac=False):
     -------
     r : (2F,) ndarray, and J if ``jac``
     """
-    M = np.asarray(M_hat, float)
-    m1, m2 = M[0::2], M[1::2]
-    a, b = m1 @ G, m2 @ G
-    na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
-    nb = np.einsum("fi,fi->f", b, b)
-    ab = np.einsum("fi,fi->f", a, b)
+    M, m1, m2, a, b, na, nb, ab = _frame_products(G, M_hat)
     r1 = 1.0 - nb / na
     r2 = 2.0 * ab / na
     w = None if weights is None else np.sqrt(np.asarray(weights, float))
@@ -93,6 +88,19 @@ def triplet_residuals(G, M_hat, weights=None, jac=False):
     return r, J
 
 
+def _frame_products(G, M_hat):
+    """(M, m1, m2, a, b, |a|^2, |b|^2, a.b) per frame: ``a = m1 G``, ``b = m2 G`` with m1,
+    m2 the x and y rows of M_hat (|a|^2 floored at a tiny value); shared by the residuals
+    and the gradient of Dai's cost."""
+    M = np.asarray(M_hat, float)
+    m1, m2 = M[0::2], M[1::2]
+    a, b = m1 @ G, m2 @ G
+    na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
+    nb = np.einsum("fi,fi->f", b, b)
+    ab = np.einsum("fi,fi->f", a, b)
+    return M, m1, m2, a, b, na, nb, ab
+
+
 def triplet_cost(G, M_hat, weights=None):
     """Dai's cost ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2``."""
     r = triplet_residuals(G, M_hat, weights)
@@ -103,12 +111,7 @@ def triplet_gradient(G, M_hat, weights=None):
     """``J' r`` (half the gradient of Dai's cost), (3K, 3), without forming the Jacobian:
     ``m1' A + m2' B`` with per-frame rows ``A = r1 c1 a + r2 (c3 b + c4 a)``,
     ``B = r1 c2 b + r2 c3 a`` (the coefficients of :func:`triplet_residuals`)."""
-    M = np.asarray(M_hat, float)
-    m1, m2 = M[0::2], M[1::2]
-    a, b = m1 @ G, m2 @ G
-    na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
-    nb = np.einsum("fi,fi->f", b, b)
-    ab = np.einsum("fi,fi->f", a, b)
+    M, m1, m2, a, b, na, nb, ab = _frame_products(G, M_hat)
     inv = 1.0 / na
     r1, r2 = 1.0 - nb * inv, 2.0 * ab * inv
     if weights is not None:                  # sqrt(w) in the residual and in the Jacobian
