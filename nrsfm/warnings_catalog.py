@@ -208,15 +208,15 @@ CATALOG = {
         "`nrsfm/stages/shape/bilinear.py`, `_balance_mu`",
         "W and these cameras do not determine the shapes on their own (closed-form nullspace "
         "gap {gap:.1e}): many rank-{K} shapes fit W equally well and the prior picks one, its "
-        "weight raised to min_mu = {min_mu:g} ||W||_F; where W has fewer than 3K "
-        "directions this is expected and the result is usually good; if the diagnostics "
-        "warn too, try a lower K",
+        "weight raised to min_mu = {min_mu:g} ||W||_F; if the diagnostics warn too, try a "
+        "lower K",
         "the bilinear shape solver with `mu` unset (the default), the closed-form start "
         "(`init=\"closed_form\"`, rank K): the closed form's (K+1)-th eigenvalue relative to "
-        "its largest is at most `NULLSPACE_GAP_MIN` = {NULLSPACE_GAP_MIN:g}",
+        "its largest is at most `NULLSPACE_GAP_MIN` = {NULLSPACE_GAP_MIN:g}. The closed form "
+        "works in W's column space (at most 3K directions), so a W of rank below 3K alone "
+        "does not trigger it (shark, rank 5 < 3K = 9: gap 4.5e-5)",
         "the data leave a family of shapes; the one returned is chosen by the prior (mu at "
-        "least `min_mu` ||W||_F, default 1e-5). On shark (rank 5 < 3K = 9) it gives e3d .005; "
-        "without the raise, 1e-7 perturbations of W gave .0006-.06.",
+        "least `min_mu` ||W||_F, default 1e-5).",
         "none if the diagnostics report no warning (the default run on shark gives this); "
         "otherwise lower K. To change the pick set `shape_options=dict(min_mu=...)`.",
         dict(gap=7.6e-33, K=3, min_mu=1e-5)),

@@ -1,5 +1,7 @@
 """Tests of the shape stage (nrsfm.stages.shape): PSVT, weights, ADMM of Eq. (10)-(13)."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -208,7 +210,8 @@ def test_optimize_shapes_bad_input(change):
 
 # ------------------------------------------------------------------ bilinear solver, closed form
 from nrsfm.noise import noise_level  # noqa: E402
-from nrsfm.stages.shape.bilinear import _objective, bilinear_weights  # noqa: E402
+from nrsfm.stages.shape.bilinear import bilinear_weights  # noqa: E402
+from nrsfm.stages.shape.factors import objective as _objective  # noqa: E402
 from nrsfm.stages.shape.closed_form import (closed_form_coefficients,  # noqa: E402
                                             closed_form_shapes)
 
@@ -290,18 +293,25 @@ def test_bilinear_noisy_stationary_scale_free_and_wnn_identity():
 
 def test_bilinear_rank_from_W_and_the_prior():
     """rank=None: K where W is itself of rank <= 3K (a rank-K shape under noise), else the
-    prior's rank: from 3K, doubled while the cap binds (a rank-6 shape solved at K = 1)."""
-    from nrsfm.stages.shape.bilinear import BIND_RTOL, prior_rank
+    prior's rank: from 3K, a column added while the rank certificate wants one (a rank-6
+    shape solved at K = 1)."""
+    from nrsfm.stages.shape.bilinear import CERTIFICATE_SLACK, prior_rank
 
     low = data_tools.make_synthetic(F=60, P=20, K=2, motion="random", seed=3)
     W = data_tools.add_noise(low.W, 0.05, seed=0)
     res = optimize_shapes_bilinear(W, low.rotations, 2)
     assert res.params["rank_rule"] == "W of rank <= 3K" and res.params["ranks"] == [2]
     high = data_tools.make_synthetic(F=60, P=20, K=6, motion="random", seed=3)
-    res = optimize_shapes_bilinear(high.W, high.rotations, 1)
-    assert res.params["rank_rule"] == "prior" and res.params["ranks"] == [3, 6]
-    s = np.linalg.svd(res.shapes.reshape(60, -1), compute_uv=False)
-    assert s[5] <= BIND_RTOL * s[0]                 # the cap no longer binds
+    res = optimize_shapes_bilinear(high.W, high.rotations, 1)       # the prior keeps rank 3
+    assert res.params["rank_rule"] == "prior" and res.params["ranks"] == [3]
+    assert res.params["rank_certificate"] <= 1 + CERTIFICATE_SLACK
+    six = optimize_shapes_bilinear(high.W, high.rotations, 1, rank=6)
+    np.testing.assert_allclose(six.shapes, res.shapes, atol=1e-6 * np.abs(res.shapes).max())
+    light = optimize_shapes_bilinear(high.W, high.rotations, 1,       # it wants rank 6
+                                     mu=1e-6 * np.linalg.norm(high.W))
+    assert light.params["ranks"] == [3, 6] and light.params["live_rank"] == 6
+    assert light.params["rank_certificate"] <= 1 + CERTIFICATE_SLACK
+    assert e3d(light.shapes, high.shapes) < 1e-4
     given = optimize_shapes_bilinear(high.W, high.rotations, 1, rank=3)
     assert given.params["rank_rule"] == "given" and given.params["ranks"] == [3]
     # the rule itself: numerical rank below 3K, a gap at 3K, or neither
@@ -373,15 +383,16 @@ def test_solver_dispatch_and_bad_input(seq):
         closed_form_shapes(seq.W[:-1], seq.rotations, seq.K)
 
 
-def test_non_unique_rank_k_fit_warns_and_lets_the_prior_decide():
-    """Rank-1 data fitted with K = 2: the rank-2 fit is not unique (closed-form nullspace
-    gap at rounding level); the solver warns and raises mu to min_mu ||W||_F."""
+def test_rank_k_fit_of_rank_deficient_W_is_unique_and_exact():
+    """Rank-1 data fitted with K = 2 (W of rank 3 < 3K): the closed form works in W's
+    rank-3 column space, where the fit is unique (before, the 3K-dimensional space held
+    three empty directions, so rounding chose the start), and the answer is exact."""
     seq = data_tools.make_synthetic(F=40, P=12, K=1, motion="smooth", seed=1)
-    with pytest.warns(RuntimeWarning, match="^W-shape-not-unique: "):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         res = optimize_shapes_bilinear(seq.W, seq.rotations, 2)
-    assert res.params["nullspace_gap"] < 1e-12
-    assert res.mu >= 1e-5 * np.linalg.norm(seq.W) * (1 - 1e-12)
-    assert e3d(res.shapes, seq.shapes) < 1e-3
+    assert res.params["nullspace_gap"] > 1e-6
+    assert e3d(res.shapes, seq.shapes) < 1e-10
 
 
 # ------------------------------------------------------------------ masked data term

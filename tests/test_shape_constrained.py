@@ -32,11 +32,11 @@ def test_exact_on_noise_free_rank_k(K, scale):
 @pytest.mark.parametrize("K", [2, 3])
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_exact_on_rank_deficient_shapes(K, scale):
-    """W of rank 5 < 3K: the rank-K fit is not unique; the answer is still the shape."""
+    """W of rank 5 < 3K: the answer is the shape (the closed form, which works in W's
+    rank-5 column space, is exact here too)."""
     W, R, gt = _rank_deficient()
     res = organic_fit_shapes(scale * W, R, K)
-    assert res.chosen == "admm"                      # the closed form is not unique here
-    assert "closed_form" not in res.candidate_objectives
+    assert res.chosen in ("admm", "closed_form", "kkt")
     assert e3d(res.shapes, gt) < 1e-6
 
 

@@ -53,14 +53,16 @@ class ShapeSettings:
     solver : SolverSettings
         The solver and its typed settings (any registered in :data:`SOLVERS`).
     select_rotations : bool
-        When the rotation stage ran: solve the shape with the stage's rotations and with
-        its best single triplet's, and keep the lower shape objective
-        (:mod:`nrsfm.stages.selection`). False: the stage's rotations only.
+        When the rotation stage ran: solve the shape in full for each of the stage's
+        rotation candidates (its rotations and its best single triplet's) and keep the lower
+        shape objective (:mod:`nrsfm.stages.selection`). False (default): the stage's
+        rotations; the other candidate is solved only as a probe of the depth sensitivity,
+        from the first answer.
     """
 
     prior: str = "organic"
     solver: SolverSettings = BilinearSettings()
-    select_rotations: bool = True
+    select_rotations: bool = False
 
     def __post_init__(self):
         if not isinstance(self.solver, SolverSettings) or not self.solver.name:
@@ -93,7 +95,7 @@ def solver_settings(name, options=None):
     return cls(**options)
 
 
-def solve_shape(W, R, K, settings=None, progress=None, observed=None):
+def solve_shape(W, R, K, settings=None, progress=None, observed=None, start=None):
     """Run the shape stage.
 
     Parameters
@@ -109,6 +111,10 @@ def solve_shape(W, R, K, settings=None, progress=None, observed=None):
         Fit the data term on these entries only (W still finite elsewhere, e.g. completed).
         Only a solver with ``masked = True`` (the ADMM) takes a partial mask; the others
         raise a ValueError rather than ignore it.
+    start : ShapeResult, optional
+        The same solver's result on the same W with nearby cameras: the starting point of a
+        solver with ``warm_start = True``. Only for a solver that takes one (ValueError
+        otherwise); it changes where the solver starts, not the problem.
 
     Returns
     -------
@@ -117,7 +123,12 @@ def solve_shape(W, R, K, settings=None, progress=None, observed=None):
     settings = ShapeSettings() if settings is None else settings
     if not isinstance(settings, ShapeSettings):
         raise ValueError(f"settings must be a ShapeSettings; got {settings!r}")
-    return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed)
+    if start is None:
+        return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed)
+    if not settings.solver.warm_start:
+        raise ValueError(f"the {settings.solver.name} shape solver takes no start")
+    return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed,
+                                 start=start)
 
 
 def solve_shapes(W, R, K, prior=None, solver="bilinear", progress=None, **options):

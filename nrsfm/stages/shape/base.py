@@ -45,6 +45,11 @@ class SolverSettings:
     name: ClassVar[str] = ""
     uses_prior: ClassVar[bool] = True
     masked: ClassVar[bool] = False
+    #: True for a solver whose ``solve`` takes ``start``: its own result on the same W with
+    #: nearby cameras, as its starting point (the depth probe of
+    #: :mod:`nrsfm.stages.selection` solves the second rotation candidate from the first's
+    #: answer)
+    warm_start: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

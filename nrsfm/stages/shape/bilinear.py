@@ -24,16 +24,20 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   rounding) and (*) is the exact rank-K fit.
 * Rank r from W and the prior (``rank=None``): K where W is itself of rank at most 3K (its
   numerical rank is below 3K, or ``s_3K+1 / s_3K < GAP_MAX``: a rank-K shape model plus
-  noise), the rank-K model; otherwise the prior chooses the rank: r starts at 3K and is
-  doubled while the cap binds (``sigma_r(X#) > BIND_RTOL sigma_1(X#)`` at the answer;
-  columns the prior does not want go to zero to rounding), up to ``min(F, 3P)``. If that fit is not unique (closed-form nullspace gap at rounding
+  noise), the rank-K model; otherwise the prior chooses the rank: r starts at 3K, the
+  columns the prior does not want die and are dropped (``PRUNE_RTOL``), and the rank
+  certificate (:func:`.factors.rank_certificate`: would a column more, at the next weight,
+  lower E?) decides whether the answer's rank is the prior's; where it is not, the wanted
+  column is added (r doubled when every column is used, up to ``min(F, 3P)``) and the fit
+  goes on from there. If the rank-K fit is not unique (closed-form nullspace gap at rounding
   level) a RuntimeWarning is issued (``W-shape-not-unique``, ``docs/warnings.md``) and
   ``mu`` raised to ``min_mu ||W||_F``.
 * Scale-free: W is divided by ``||W||_F`` inside and ``mu`` is proportional to the scale
   of W, so the minimiser for ``c W`` is ``c`` times that for ``W``.
-* Solver: variable projection. C is eliminated in closed form (one 3r x 3r normal system
-  shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS with its exact
-  gradient, preconditioned per frame, from the closed-form rank-K start. Each iteration
+* Solver: variable projection (:mod:`.factors`). C is eliminated in closed form (one 3r x 3r
+  normal system shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS
+  with its exact gradient, preconditioned per frame, from the closed-form rank-K start
+  (r = K) or the leading singular vectors of X_init# (r > K), restarted every few iterations from the SVD-aligned factors of the same X#. Each iteration
   is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
   thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
   when the relative gradient norm is below ``gtol``.
@@ -52,29 +56,33 @@ from dataclasses import dataclass
 from typing import ClassVar, Optional
 
 import numpy as np
-import scipy.optimize
 
 from ...noise import noise_from_singular_values
 from ...validation import check_choice, check_integer, check_positive
 from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
 from ..rotations.subspace import DETERMINED_RTOL
-from .closed_form import NULLSPACE_GAP_MIN, c_step, nullspace_coefficients
+from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
+from .factors import c_step, minimise, objective, rank_certificate, relative_gradient
 from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["BIND_RTOL", "BilinearSettings", "ClosedFormSettings", "GAP_MAX", "balance_factors",
-           "bilinear_weights", "frame_preconditioner", "prior_rank", "solve_bilinear",
-           "solve_closed_form"]
+__all__ = ["BilinearSettings", "ClosedFormSettings", "GAP_MAX", "bilinear_weights",
+           "prior_rank", "solve_bilinear", "solve_closed_form"]
 
-#: L-BFGS restarts with a fresh preconditioner every this many iterations
-LBFGS_SEGMENT = 100
 #: W counts as of rank at most 3K (the rank-K model) when s_3K+1 / s_3K is below this
 #: (measured: 0.06 - 0.27 for rank-K shapes under 2 - 10 % noise, 0.72 - 0.92 for the real
 #: shapes, docs/shape_stage.md)
 GAP_MAX = 0.5
-#: the rank cap binds when sigma_r(X#) exceeds this fraction of sigma_1(X#) (measured:
-#: 1e-14 - 1e-17 when the prior's answer has lower rank, 6e-3 when it binds)
-BIND_RTOL = 1e-8
+#: at most this many fits, each at a rank from the one before (a column added where the
+#: rank certificate wants one, the rank doubled when every column is used)
+MAX_RANK_STEPS = 8
+#: columns whose singular value falls to this fraction of the largest are dropped while the
+#: prior chooses the rank (measured on pickup: the columns the answer does not use fall
+#: below 1e-9 within 20 - 50 iterations and reach 1e-16; those it uses stay above 1e-4)
+PRUNE_RTOL = 1e-9
+#: the prior's rank is reached when the rank certificate (the gain of a column more per
+#: unit of its weight) is at most 1 + this
+CERTIFICATE_SLACK = 1e-3
 
 
 # --------------------------------------------------------------------------------------
@@ -90,8 +98,8 @@ class BilinearSettings(SolverSettings):
     ----------
     rank : int or None
         Factor rank r; None: from W and the prior (module docstring): K where W is of rank
-        at most 3K, else as large as the prior's answer needs (from 3K, doubled while the
-        cap binds).
+        at most 3K, else as large as the prior's answer needs (from 3K; columns added while
+        the rank certificate wants one).
     mu_factor : float
         Least ``m`` in ``mu = m * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (measured:
         0.01, ``docs/shape_stage.md``).
@@ -113,6 +121,7 @@ class BilinearSettings(SolverSettings):
     """
 
     name: ClassVar[str] = "bilinear"
+    warm_start: ClassVar[bool] = True
     INITS: ClassVar[tuple] = ("closed_form", "rank_k")
     rank: Optional[int] = None
     mu_factor: float = 0.01
@@ -120,7 +129,7 @@ class BilinearSettings(SolverSettings):
     mu: Optional[float] = None
     min_mu: float = 1e-5
     init: str = "closed_form"
-    gtol: float = 1e-6
+    gtol: float = 1e-8
     max_iter: int = 3000
 
     def __post_init__(self):
@@ -133,9 +142,9 @@ class BilinearSettings(SolverSettings):
         check_choice("init", self.init, self.INITS)
         check_integer(self.max_iter, "max_iter", minimum=0)
 
-    def solve(self, W, R, K, prior, progress=None, observed=None):
+    def solve(self, W, R, K, prior, progress=None, observed=None, start=None):
         self.check_observed(observed, W)
-        return solve_bilinear(W, R, K, prior, self, progress)
+        return solve_bilinear(W, R, K, prior, self, progress, start)
 
 
 @dataclass(frozen=True)
@@ -207,57 +216,11 @@ def _singular_values(A):
     return np.sqrt(np.maximum(ev, 0.0))
 
 
-def _objective(B, C, Pi, Xi, w2, reg):
-    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC).
-
-    With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
-    <X_f, Pi_f X_f>`` (``Pi_f = R_f'R_f``), and ``dE_data / dX_f = Pi_f X_f - X_init_f``.
-    ``w2 = ||W||_F^2``.
-    """
-    F = B.shape[0]
-    Xs = B @ C.T                                               # X#, (F, 3P)
-    X = Xs.reshape(F, 3, -1)
-    PX = (Pi[:, :, 0, None] * X[:, None, 0, :] + Pi[:, :, 1, None] * X[:, None, 1, :]
-          + Pi[:, :, 2, None] * X[:, None, 2, :]).reshape(F, -1)
-    G = PX - Xi                                                # dE_data / dX#
-    data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
-    bn, cn = np.sum(B ** 2, axis=0), np.sum(C ** 2, axis=0)
-    E = data + 0.5 * float(reg @ (bn + cn))
-    gB = G @ C + B * reg
-    gC = G.T @ B + C * reg
-    return E, data, gB, gC
-
-
-def frame_preconditioner(C, Pi, reg):
-    """L_f^-1 (F, r, r) for H_f = L_f L_f', H_f = d^2 E / dB_f^2 at fixed C (the B-step
-    normal matrix: ``H_f[i, j] = <C_i, (I_P kron R_f'R_f) C_j> + reg_i delta_ij``)."""
-    r = C.shape[1]
-    P = C.shape[0] // 3
-    C3 = C.T.reshape(r, 3, P)
-    Hc = np.einsum("iap,jbp->abij", C3, C3)                   # (3, 3, r, r)
-    H = np.einsum("fab,abij->fij", Pi, Hc)
-    H[:, np.arange(r), np.arange(r)] += reg
-    tr = np.trace(H, axis1=1, axis2=2)[:, None, None] / r
-    H = H + 1e-12 * np.maximum(tr, 1e-300) * np.eye(r)      # guard singular frames
-    L = np.linalg.cholesky(H)
-    return np.linalg.inv(L)
-
-
-def balance_factors(B, C):
-    """Rescale B_i, C_i to equal norms (X# unchanged, regulariser not increased)."""
-    bn = np.linalg.norm(B, axis=0)
-    cn = np.linalg.norm(C, axis=0)
-    ok = (bn > 0) & (cn > 0)
-    t = np.ones_like(bn)
-    t[ok] = np.sqrt(cn[ok] / bn[ok])
-    return B * t, C / t
-
-
 # --------------------------------------------------------------------------------------
 # solver
 # --------------------------------------------------------------------------------------
 
-def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None):
+def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None, start=None):
     """Minimise (*) (module docstring) to a stationary point by variable projection.
 
     Parameters
@@ -271,40 +234,42 @@ def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None):
         Weights ``a``, see :func:`bilinear_weights`.
     settings : BilinearSettings
     progress : callable(str) or None
+    start : ShapeResult, optional
+        This solver's result on the same W (same rank rule and first rank) with nearby
+        cameras: the fit starts from its factors at its final rank (ValueError for any
+        other start).
 
     Returns
     -------
     ShapeResult
     """
-    return _bilinear(W, R, K, prior, settings, progress)
+    return _bilinear(W, R, K, prior, settings, progress, start)
 
 
 class _Objective:
     """E(B, C) of (*) on normalised W (``||W||_F = 1``), with its iteration record."""
 
-    def __init__(self, Pi, Xi, reg):
-        self.Pi, self.Xi, self.reg, self.w2 = Pi, Xi, reg, 1.0      # w2 = ||Wn||_F^2
+    def __init__(self, Rf, Wn, Xi, reg):
+        self.Rf, self.Wn, self.Xi, self.reg = Rf, Wn, Xi, reg
+        self.Pi = Rf.transpose(0, 2, 1) @ Rf
         self.hist = {"cost": [], "data_term": [], "grad_norm": []}
 
     def c_step(self, B):
-        return c_step(B, self.Pi, self.Xi, self.reg)
+        return c_step(B, self.Rf, self.Wn, self.reg[:B.shape[1]])
 
-    def values(self, B, C):
-        return _objective(B, C, self.Pi, self.Xi, self.w2, self.reg)
+    def values(self, B, C):                                          # ||Wn||_F^2 = 1
+        return objective(B, C, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])
 
-    def measure(self, B, C, values=None):
+    def measure(self, B, C):
         """(E, data term, relative gradient norm)."""
-        E, data, gB, gC = self.values(B, C) if values is None else values
-        g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
-        rel = g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
-        return E, data, rel
+        E, data, gB, gC = self.values(B, C)
+        return E, data, relative_gradient(B, C, gB, gC)
 
-    def record(self, B, C, values=None):
-        E, data, rel = self.measure(B, C, values)
+    def record(self, B, C, values):
+        E, data, gB, gC = values
         self.hist["cost"].append(E)
         self.hist["data_term"].append(data)
-        self.hist["grad_norm"].append(rel)
-        return rel
+        self.hist["grad_norm"].append(relative_gradient(B, C, gB, gC))
 
 
 def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
@@ -335,7 +300,8 @@ def prior_rank(sw, K, F, P):
 
     ``"W of rank <= 3K"``: r = K, W's numerical rank (above ``DETERMINED_RTOL s_1``) is
     below 3K or ``s_3K+1 / s_3K < GAP_MAX`` (the rank-K model); else ``"prior"``:
-    r = min(3K, F, 3P), doubled by the solver while the cap binds.
+    r = min(3K, F, 3P), from which the solver drops the columns the prior does not use and
+    adds those the rank certificate wants.
     """
     sw = np.asarray(sw, float)
     numerical_rank = int(np.sum(sw > DETERMINED_RTOL * sw[0]))
@@ -345,8 +311,8 @@ def prior_rank(sw, K, F, P):
     return min(3 * K, F, 3 * P), "prior"
 
 
-def _bilinear(W, R, K, prior, st, progress):
-    """Set-up, the rank rule, L-BFGS (:func:`_minimise`) at each rank, and the result in
+def _bilinear(W, R, K, prior, st, progress, start=None):
+    """Set-up, the rank rule, L-BFGS (:func:`.factors.minimise`) at each rank, and the result in
     W's units."""
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     check_prior(prior)
@@ -365,43 +331,87 @@ def _bilinear(W, R, K, prior, st, progress):
     say = progress if callable(progress) else (lambda msg: None)
     Xi3 = Rf.transpose(0, 2, 1) @ Wn.reshape(F, 2, P)
     sigma = _singular_values(Xi3.reshape(F, 3 * P))
+    cache, prune = {}, why == "prior"
+    if start is not None:                   # its factors, at its final rank
+        cache["warm"], r = _warm_factors(start, Wn, r, why)
     ranks, n_total = [], 0
-    while True:
-        fit = _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale)
+    for _ in range(MAX_RANK_STEPS):
+        fit = _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prune)
         ranks.append(r)
         n_total += fit["n_iter"]
-        s_x = fit["s_x"]
-        binds = why == "prior" and r < r_max and s_x[-1] > BIND_RTOL * s_x[0]
+        grow = prune and fit["certificate"] > 1.0 + CERTIFICATE_SLACK     # nan: full rank
         say(f"shape (bilinear, {prior}, r={r}) stopped after {fit['n_iter']} iterations: "
-            f"relative gradient {fit['rel']:.2e}"
-            + ("; the rank cap binds, doubling it" if binds else ""))
-        if not binds:
+            f"relative gradient {fit['rel']:.2e}, rank {fit['live']}"
+            + (f"; {fit['wanted'].shape[1]} column(s) more wanted (rank certificate "
+               f"{fit['certificate']:.4g})" if grow else ""))
+        if not grow:
             break
-        r = min(2 * r, r_max)
+        B_next = np.column_stack([fit["B"], fit["wanted"]])   # the wanted columns added
+        if B_next.shape[1] > r:             # the cap is too low: doubled (or more)
+            r = min(max(2 * r, B_next.shape[1]), r_max)
+        cache["warm"] = B_next[:, :r]
     fit.update(ranks=ranks, rank_rule=why, n_total=n_total)
     return _result(fit, Xi3, sigma, F, P, K, prior, st, scale)
 
 
-def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale):
-    """(*) at rank r from its start: the fitted factors and their measures (a dict)."""
+def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prune):
+    """(*) at rank r from its start: the fitted factors and their measures (a dict).
+
+    With ``prune``, columns that die are dropped (:func:`.factors.minimise`) and the result
+    carries the rank certificate of the first dropped weight (:func:`rank_certificate`).
+    ``cache`` holds the SVD of X_init# across calls and a warm start (used once)."""
     F, P = Xi3.shape[0], Xi3.shape[2]
     Xi = Xi3.reshape(F, 3 * P)
     a = bilinear_weights(sigma, r, prior)
     mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
-    obj = _Objective(Rf.transpose(0, 2, 1) @ Rf, Xi, mu_n * a)
-    if B0 is None:
-        U, sv, _ = np.linalg.svd(Xi, full_matrices=False)
-        B0 = U[:, :r] * np.sqrt(sv[:r])
-    B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
-    B, C = balance_factors(B0, obj.c_step(B0))
-    B, C, n_iter = _minimise(B, C, obj, st.gtol, st.max_iter, F, r)
+    obj = _Objective(Rf, Wn, Xi, mu_n * a)
+    warm = cache.pop("warm", None)
+    if warm is not None:
+        B0 = warm
+    else:
+        if B0 is None:
+            B0 = _start(Xi, r, cache)
+        B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
+    B, C, rel, n_iter = minimise(B0, obj.values, obj.c_step, obj.Pi, obj.reg, st.gtol,
+                                 st.max_iter, on_iterate=obj.record,
+                                 prune_rtol=PRUNE_RTOL if prune else None)
+    live = B.shape[1]
     E, data, rel = obj.measure(B, C)
     res = Wn.reshape(F, 2, P) - np.einsum("fac,fcp->fap", Rf, (B @ C.T).reshape(F, 3, P))
     data_exact = 0.5 * float(np.sum(res ** 2))
     s_x = np.linalg.svd(np.linalg.qr(B, mode="r") @ np.linalg.qr(C, mode="r").T,
-                        compute_uv=False)                      # sigma(B C'), r x r
+                        compute_uv=False)                      # sigma(B C'), live x live
+    cert, wanted = float("nan"), None
+    r_max = min(F, 3 * P)
+    if prune and live < r_max:              # the weights of the columns not used
+        reg_next = mu_n * bilinear_weights(sigma, min(2 * live, r_max), prior)[live:]
+        cert, s_g, U = rank_certificate(B, C, obj.Pi, Xi, reg_next)
+        gain = s_g - reg_next[:s_g.size] * (1.0 + CERTIFICATE_SLACK)
+        n = int(np.argmin(gain > 0)) if not np.all(gain > 0) else gain.size
+        wanted = U[:, :n] * np.sqrt(np.maximum(gain[:n], 0.0))   # at first-order size
     return dict(B=B, C=C, n_iter=n_iter, obj=obj, a=a, mu_n=mu_n, noise=noise, gap=gap,
-                E=E + data_exact - data, data_exact=data_exact, rel=rel, s_x=s_x, r=r)
+                E=E + data_exact - data, data_exact=data_exact, rel=rel, s_x=s_x, r=r,
+                live=live, certificate=cert, wanted=wanted)
+
+
+def _warm_factors(start, Wn, r, why):
+    """(B of ``start`` in normalised units, its final rank); ValueError unless it is a
+    bilinear result on a W of the same size with the same rank rule and first rank."""
+    p = getattr(start, "params", None) or {}
+    B = getattr(start, "B", None)
+    if getattr(start, "solver", None) != "bilinear" or B is None or \
+            B.shape[0] != Wn.shape[0] // 2 or p.get("rank_rule") != why or \
+            list(p.get("ranks", ()))[:1] != [r]:
+        raise ValueError("start must be a bilinear shape result on the same W (same rank "
+                         f"rule {why!r} and first rank {r}); got {type(start).__name__}")
+    return np.asarray(B, float) / math.sqrt(float(p["normalisation"])), int(p["rank"])
+
+
+def _start(Xi, r, cache):
+    """B0 (F, r) for r > K: the leading left singular vectors of X_init# (its SVD cached)."""
+    if "U" not in cache:
+        cache["U"], cache["s"] = np.linalg.svd(Xi, full_matrices=False)[:2]
+    return cache["U"][:, :r] * np.sqrt(cache["s"][:r])
 
 
 def _result(fit, Xi3, sigma, F, P, K, prior, st, scale):
@@ -413,8 +423,9 @@ def _result(fit, Xi3, sigma, F, P, K, prior, st, scale):
                   rank_rule=fit["rank_rule"], mu_factor=st.mu_factor, mu_noise=st.mu_noise,
                   noise_rel=noise_rel, min_mu=st.min_mu, init=st.init, gtol=st.gtol,
                   max_iter=int(st.max_iter), normalisation=scale,
-                  nullspace_gap=fit["gap"])
-    wnn = fit["data_exact"] + float(obj.reg @ fit["s_x"])
+                  nullspace_gap=fit["gap"], live_rank=fit["live"],
+                  rank_certificate=fit["certificate"])
+    wnn = fit["data_exact"] + float(obj.reg[:fit["live"]] @ fit["s_x"])
     return ShapeResult(
         shapes=(B @ C.T).reshape(F, 3, P) * scale, X_init=Xi3 * scale,
         X_init_singular_values=sigma * scale, theta=obj.reg * scale, weights=fit["a"],
@@ -423,61 +434,3 @@ def _result(fit, Xi3, sigma, F, P, K, prior, st, scale):
         objective=fit["E"] * scale ** 2, wnn_objective=wnn * scale ** 2, optimality=rel,
         optimality_kind="gradient", history={k: np.asarray(v) for k, v in obj.hist.items()},
         n_iter=fit["n_total"], converged=converged, params=params)
-
-
-class _Done(Exception):
-    pass
-
-
-def _minimise(B, C, obj, gtol, max_iter, F, r):
-    """L-BFGS on the reduced objective f(B) = min_C E(B, C), in preconditioned variables
-    z_f = L_f' B_f with L_f L_f' = H_f the per-frame Hessian of E in B_f at the current C
-    (r x r). Restarted every :data:`LBFGS_SEGMENT` iterations with a fresh preconditioner
-    from balanced factors (balancing keeps X# and never raises E)."""
-    rel = obj.record(B, C)
-    n_iter = 0
-    state = {"B": B}
-    while rel > gtol and n_iter < max_iter:
-        Linv = frame_preconditioner(C, obj.Pi, obj.reg)      # (F, r, r), L_f^-1
-
-        def to_B(z):
-            return np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
-
-        def fun(z):
-            Bz = to_B(z)
-            Cz = obj.c_step(Bz)
-            vals = obj.values(Bz, Cz)
-            state["last"] = (z.copy(), Bz, Cz, vals)
-            return vals[0], np.einsum("fij,fj->fi", Linv, vals[2]).ravel()
-
-        def cb(zk):
-            nonlocal n_iter, rel
-            n_iter += 1
-            z_last, Bk, Ck, vals = state["last"]
-            if not np.array_equal(z_last, zk):      # not the last evaluated point
-                Bk = to_B(zk)
-                Ck = obj.c_step(Bk)
-                vals = None
-            state["B"] = Bk
-            rel = obj.record(Bk, Ck, vals)
-            if rel <= gtol or n_iter >= max_iter:
-                raise _Done
-
-        n_before = n_iter
-        z0 = np.einsum("fji,fj->fi", np.linalg.inv(Linv), B).ravel()   # L_f' B_f
-        state["B"] = B
-        try:
-            out = scipy.optimize.minimize(
-                fun, z0, jac=True, method="L-BFGS-B", callback=cb,
-                options=dict(maxiter=min(LBFGS_SEGMENT, max_iter - n_iter), maxcor=20,
-                             gtol=0.0, ftol=0.0, maxls=40))
-            B = to_B(out.x)
-        except _Done:
-            B = state["B"]
-        B, C = balance_factors(B, obj.c_step(B))
-        C = obj.c_step(B)
-        rel = obj.measure(B, C)[2]
-        if n_iter == n_before:                  # no progress possible (rounding level)
-            break
-    B, C = balance_factors(B, C)
-    return B, C, n_iter

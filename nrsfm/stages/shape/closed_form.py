@@ -7,11 +7,12 @@ and the ``closed_form`` shape solver (:class:`nrsfm.stages.shape.bilinear.Closed
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from .common import check_shape_inputs
+from .factors import c_step
+from ..rotations.subspace import DETERMINED_RTOL
 
-__all__ = ["NULLSPACE_GAP_MIN", "c_step", "closed_form_coefficients", "closed_form_fit",
+__all__ = ["NULLSPACE_GAP_MIN", "closed_form_coefficients", "closed_form_fit",
            "closed_form_shapes", "nullspace_coefficients"]
 
 #: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
@@ -44,12 +45,13 @@ def nullspace_coefficients(U, s, Rf, K):
     """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
     F = Rf.shape[0]
     s = s / s[0]
-    M = (U[:, :3 * K] * s[:3 * K]).reshape(F, 2, 3 * K)     # M_hat_f, (F, 2, 3K)
+    n = min(3 * K, int(np.sum(s > DETERMINED_RTOL)))         # W's numerical rank, at most 3K
+    M = (U[:, :n] * s[:n]).reshape(F, 2, n)                  # M_hat_f, (F, 2, n)
     # vec(M_f G) for G (3K, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
     MtM = np.einsum("fai,faj->ij", M, M)
     Q = np.kron(MtM, np.eye(3))
     # A_f' r_f = vec(M_f' R_f) (3K x 3)
-    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 9 * K)
+    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 3 * n)
     Q -= 0.5 * v.T @ v
     evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
     G = evecs[:, :K]                                          # (9K, K)
@@ -103,29 +105,5 @@ def closed_form_fit(W, Rf, K):
     U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
     B, ev = nullspace_coefficients(U, s, Rf, K)
     B = B / np.linalg.norm(B, axis=0)
-    Xi = (Rf.transpose(0, 2, 1) @ W.reshape(F, 2, P)).reshape(F, 3 * P)
-    Pi = Rf.transpose(0, 2, 1) @ Rf
-    C = c_step(B, Pi, Xi, np.zeros(K))
+    C = c_step(B, Rf, W, np.zeros(K))
     return (B @ C.T).reshape(F, 3, P), float(ev[K])
-
-
-def c_step(B, Pi, Xi, reg):
-    """argmin_C E(B, C): one (3r x 3r) system shared by all points.
-
-    For point p with unknowns c_p = [C_i(:, p)]_i (3r), the data term is
-    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``; normal matrix
-    ``sum_f (B_f'B_f) kron (R_f'R_f) + diag(reg kron 1_3)``, right-hand side
-    ``sum_f B_f' kron X_init_f``.
-    """
-    F, r = B.shape
-    P = Xi.shape[1] // 3
-    BB = (B[:, :, None] * B[:, None, :]).reshape(F, r * r)
-    N = (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3).reshape(3 * r, 3 * r)
-    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
-    rhs = (B.T @ Xi).reshape(3 * r, P)
-    try:
-        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
-                                   check_finite=False)
-    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
-        c = np.linalg.lstsq(N, rhs, rcond=None)[0]
-    return c.reshape(r, 3 * P).T                              # (3P, r)

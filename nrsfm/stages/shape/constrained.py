@@ -47,6 +47,7 @@ from ...noise import noise_from_singular_values
 from ...validation import check_flag, check_integer, check_K, check_measurements, check_positive
 from .base import PRIORS, SolverSettings, check_prior
 from .bilinear import bilinear_weights
+from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, closed_form_fit
 from .common import ShapeResult, check_shape_inputs
 from .constrained_polish import rank_certificate, solve_kkt
@@ -449,12 +450,16 @@ def _continuation_admm(W, Rf, eps, prior, rho0, lam, rho_max, tol, max_iter):
 
 def _select_candidate(X_admm, Wn, Rf, K, eps_n, a, label="admm"):
     """The feasible point of (C) with the lower objective: the ADMM's, or the closed-form
-    rank-K shape projected onto the constraint. The latter is a candidate only when the
-    rank-K fit is unique (nullspace gap above ``NULLSPACE_GAP_MIN``; otherwise it is an arbitrary
-    member chosen by rounding) and wins only if lower by more than a relative 1e-9."""
+    rank-K shape projected onto the constraint. The latter is a candidate only when W has
+    3K directions and the rank-K fit is unique (nullspace gap above ``NULLSPACE_GAP_MIN``):
+    where W has fewer, the closed form works in W's smaller column space, where a planar
+    basis has no exact triplet, and (C) can prefer its inexact fit (rigid plus planar,
+    K = 2: e3d .044, the ADMM below 1e-6). It wins only if lower by more than a
+    relative 1e-9."""
     X_cf, gap = closed_form_fit(Wn, Rf, K)        # (W' = U S: the same B, bases S V)
     cand = {label: organic_objective(X_admm, a)}
-    if not gap > NULLSPACE_GAP_MIN:                    # rank-K fit not unique: no candidate
+    s = np.linalg.svd(Wn, compute_uv=False)
+    if not gap > NULLSPACE_GAP_MIN or np.sum(s > DETERMINED_RTOL * s[0]) < 3 * K:
         return X_admm, label, cand
     X_cf = project_to_fit(X_cf, Wn, Rf, eps_n)
     cand["closed_form"] = organic_objective(X_cf, a)

@@ -28,10 +28,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.optimize
 
-from .bilinear import balance_factors, frame_preconditioner
-from .closed_form import c_step
+from .factors import c_step, minimise
 
 __all__ = ["factor_start", "multiplier_estimate", "rank_certificate", "solve_penalised",
            "solve_kkt"]
@@ -49,15 +47,6 @@ def _energy(B, C, Pi, Xi, Wf, Rf, reg):
     E = 0.5 * r2 + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
     return E, math.sqrt(r2), G @ C + B * reg, G.T @ B + C * reg
 
-
-
-
-
-
-def _rel_grad(B, C, gB, gC):
-    """Relative gradient norm ``||grad E|| / ||(B, C)||`` (scale-free)."""
-    g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
-    return g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
 
 
 def factor_start(X, r):
@@ -83,62 +72,18 @@ def multiplier_estimate(X, Wf, Rf, a):
     return mu
 
 
-def solve_penalised(B, C, Pi, Xi, Wf, Rf, reg, gtol, max_iter, segment=200):
-    """Minimise the factored E_mu (reg = mu a) from (B, C) to relative gradient ``gtol``.
-
-    Variable projection (C eliminated) and L-BFGS on z_f = L_f' B_f, restarted every
-    ``segment`` iterations with a fresh preconditioner from balanced factors. Returns
-    B, C, the relative gradient norm, the residual ||W - R X|| and the iteration count.
-    """
-    F, r = B.shape
-    n_iter = 0
-    count = {"it": 0}
-
-    def tick(_):
-        count["it"] += 1
-
-    B, C = balance_factors(B, c_step(B, Pi, Xi, reg))
-    C = c_step(B, Pi, Xi, reg)
-    E, res, gB, gC = _energy(B, C, Pi, Xi, Wf, Rf, reg)
-    rel = _rel_grad(B, C, gB, gC)
-    while rel > gtol and n_iter < max_iter:
-        Linv = frame_preconditioner(C, Pi, reg)
-
-        def fun(z):
-            Bz = np.einsum("fji,fj->fi", Linv, z.reshape(F, r))
-            Cz = c_step(Bz, Pi, Xi, reg)
-            E, _, gB, gC = _energy(Bz, Cz, Pi, Xi, Wf, Rf, reg)
-            if _rel_grad(Bz, Cz, gB, gC) <= gtol:
-                raise _Converged(Bz)
-            return E, np.einsum("fij,fj->fi", Linv, gB).ravel()
-
-        z0 = np.einsum("fji,fj->fi", np.linalg.inv(Linv), B).ravel()
-        count["it"] = 0
-        try:
-            out = scipy.optimize.minimize(
-                fun, z0, jac=True, method="L-BFGS-B", callback=tick,
-                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=30, gtol=0.0,
-                             ftol=0.0, maxls=40))
-            Bn = np.einsum("fji,fj->fi", Linv, out.x.reshape(F, r))
-        except _Converged as done:
-            Bn = done.B
-        steps = count["it"]
-        n_iter += max(steps, 1)
-        B, C = balance_factors(Bn, c_step(Bn, Pi, Xi, reg))
-        C = c_step(B, Pi, Xi, reg)
-        E, res, gB, gC = _energy(B, C, Pi, Xi, Wf, Rf, reg)
-        new = _rel_grad(B, C, gB, gC)
-        if steps == 0 or (new >= rel and steps < segment):
-            rel = new
-            break                                      # no progress possible (rounding)
-        rel = new
-    return B, C, rel, res, n_iter
-
-
-class _Converged(Exception):
-    def __init__(self, B):
-        super().__init__()
-        self.B = B
+def solve_penalised(B, C, Pi, Xi, Wf, Rf, reg, gtol, max_iter):
+    """Minimise the factored E_mu (reg = mu a) from (B, C) to relative gradient ``gtol``
+    (:func:`nrsfm.stages.shape.factors.minimise`: variable projection, C eliminated, and
+    L-BFGS on per-frame preconditioned B). Returns B, C, the relative gradient norm, the
+    residual ||W - R X|| and the iteration count."""
+    F = B.shape[0]
+    W2 = Wf.reshape(2 * F, -1)
+    B, C, rel, n_iter = minimise(
+        B, lambda B, C: _energy(B, C, Pi, Xi, Wf, Rf, reg),
+        lambda B: c_step(B, Rf, W2, reg), Pi, reg, gtol, max_iter)
+    res = _energy(B, C, Pi, Xi, Wf, Rf, reg)[1]
+    return B, C, rel, res, max(n_iter, 1)
 
 
 def solve_kkt(X0, Wf, Rf, a, eps, r, *, gtol=1e-8, rtol=1e-5, max_outer=30, max_iter=20000):

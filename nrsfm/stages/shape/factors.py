@@ -1,0 +1,311 @@
+"""Kernels of the factored shape objective, shared by the bilinear and constrained solvers.
+
+With ``X# = B C'`` (B: F x r, C: 3P x r) and orthonormal camera rows ``R_f`` (2 x 3),
+
+    E(B, C) = 1/2 sum_f ||W_f - R_f X_f||_F^2 + 1/2 sum_i reg_i (|B_i|^2 + |C_i|^2).   (*)
+
+This module holds what every step of a solver of (*) needs, written for speed (each is a
+few matrix products; no per-frame Python loop and no per-frame LAPACK call):
+
+* :func:`c_step`: ``argmin_C E`` for fixed B, one 3r x 3r system shared by all points;
+* :func:`objective`: E, its data term and both gradients;
+* :func:`frame_preconditioner`: the per-frame Hessians ``H_f = d^2 E / dB_f^2`` at fixed C,
+  their Cholesky factors and inverse factors (batched, vectorised over frames);
+* :func:`svd_align`: the factorisation of the same X# that minimises the regulariser;
+* :func:`minimise`: L-BFGS on the reduced ``f(B) = min_C E(B, C)`` (variable projection)
+  in per-frame preconditioned variables, restarted from aligned factors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+__all__ = ["SEGMENT", "c_step", "frame_hessians", "frame_preconditioner", "minimise",
+           "objective", "rank_certificate", "relative_gradient", "svd_align"]
+
+#: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
+#: iterations (measured on pickup: 2120 iterations to a relative gradient of 1e-9 without
+#: the alignment, 314 / 189 / 191 with it every 30 / 10 / 5; docs/shape_stage.md)
+SEGMENT = 10
+
+
+def c_step(B, Rf, W, reg):
+    """argmin_C E(B, C) of (*): one (3r x 3r) system shared by all points.
+
+    For point p with unknowns ``c_p = [C_i(:, p)]_i`` (3r), the data term is
+    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``: with ``A`` the (2F x 3r) matrix of rows
+    ``B_f kron R_f``, the normal matrix is ``A'A + diag(reg kron 1_3)`` and the right-hand
+    sides ``A'W``.
+
+    Parameters
+    ----------
+    B : (F, r) ndarray
+    Rf : (F, 2, 3) ndarray
+        Orthonormal camera rows.
+    W : (2F, P) ndarray
+        Row-centred measurements.
+    reg : (r,) ndarray
+        Non-negative regulariser weights.
+
+    Returns
+    -------
+    C : (3P, r) ndarray
+    """
+    F, r = B.shape
+    P = W.shape[1]
+    A = (B[:, None, :, None] * Rf[:, :, None, :]).reshape(2 * F, 3 * r)
+    N = A.T @ A
+    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
+    rhs = A.T @ W
+    try:
+        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
+                                   check_finite=False)
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        c = np.linalg.lstsq(N, rhs, rcond=None)[0]
+    return c.reshape(r, 3 * P).T
+
+
+def project(Pi, Xs):
+    """``Pi_f X_f`` for every frame, as (F, 3P) (``Pi_f = R_f'R_f``)."""
+    F = Xs.shape[0]
+    return np.matmul(Pi, Xs.reshape(F, 3, -1)).reshape(F, -1)
+
+
+def objective(B, C, Pi, Xi, w2, reg):
+    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC).
+
+    With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
+    <X_f, Pi_f X_f>`` (``X_init_f = R_f'W_f``, ``Pi_f = R_f'R_f``), and
+    ``dE_data / dX_f = Pi_f X_f - X_init_f``. ``w2 = ||W||_F^2``; Xi is X_init# (F, 3P).
+    """
+    Xs = B @ C.T
+    PX = project(Pi, Xs)
+    G = PX - Xi
+    data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
+    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
+    return E, data, G @ C + B * reg, G.T @ B + C * reg
+
+
+def frame_hessians(C, Pi, reg):
+    """``H_f = d^2 E / dB_f^2`` at fixed C, (F, r, r): ``H_f[i, j] = <C_i, (I_P kron Pi_f)
+    C_j> + reg_i delta_ij``, from the nine (r x r) blocks ``sum_p C_i[a, p] C_j[b, p]``."""
+    r = C.shape[1]
+    F = Pi.shape[0]
+    Ct = C.T.reshape(r, 3, -1).transpose(1, 0, 2).reshape(3 * r, -1)     # rows (a, i)
+    M = (Ct @ Ct.T).reshape(3, r, 3, r).transpose(0, 2, 1, 3).reshape(9, r * r)
+    H = (Pi.reshape(F, 9) @ M).reshape(F, r, r)
+    H[:, np.arange(r), np.arange(r)] += reg
+    return H
+
+
+def _cholesky(H):
+    """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n."""
+    r = H.shape[1]
+    L = np.zeros_like(H)
+    for j in range(r):
+        Lj = L[:, j, :j]
+        d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), 1e-300))
+        L[:, j, j] = d
+        if j + 1 < r:
+            L[:, j + 1:, j] = (H[:, j + 1:, j]
+                               - np.matmul(L[:, j + 1:, :j], Lj[:, :, None])[:, :, 0]) / d[:, None]
+    return L
+
+
+def _lower_inverse(L):
+    """Inverses of a batch of lower-triangular matrices (n, r, r), by forward substitution
+    vectorised over n."""
+    n, r, _ = L.shape
+    X = np.zeros_like(L)
+    d = 1.0 / np.diagonal(L, axis1=1, axis2=2)
+    for j in range(r):
+        row = np.zeros((n, r))
+        if j:
+            row -= np.matmul(L[:, j:j + 1, :j], X[:, :j, :])[:, 0, :]
+        row[:, j] += 1.0
+        X[:, j, :] = row * d[:, j, None]
+    return X
+
+
+def frame_preconditioner(C, Pi, reg):
+    """(L, L^-1), each (F, r, r), with ``L_f L_f' = H_f`` (:func:`frame_hessians`; a frame
+    whose H_f is singular gets ``1e-12 tr(H_f) / r`` added to its diagonal)."""
+    H = frame_hessians(C, Pi, reg)
+    r = H.shape[1]
+    tr = np.trace(H, axis1=1, axis2=2) / r
+    H[:, np.arange(r), np.arange(r)] += 1e-12 * np.maximum(tr, 1e-300)[:, None]
+    L = _cholesky(H)
+    return L, _lower_inverse(L)
+
+
+def svd_align(B, C):
+    """Factors of the same X# = B C' that minimise ``sum_i reg_i (|B_i|^2 + |C_i|^2)`` for
+    every non-decreasing reg: ``B = U S^1/2``, ``C = V S^1/2`` with ``X# = U S V'`` (Iglesias,
+    Olsson, Oernhag, ECCV 2020, Sec. 3), computed from the QR factors of B and C (an
+    r x r SVD). Never raises E; the largest singular value goes to the smallest weight."""
+    Qb, Rb = np.linalg.qr(B)
+    Qc, Rc = np.linalg.qr(C)
+    U, s, Vt = np.linalg.svd(Rb @ Rc.T)
+    q = np.sqrt(s)
+    return (Qb @ U) * q, (Qc @ Vt.T) * q
+
+
+def relative_gradient(B, C, gB, gC):
+    """``||grad E|| / ||(B, C)||`` (scale-free)."""
+    g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
+    return g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
+
+
+class _Done(Exception):
+    pass
+
+
+def _restart(B, c_step_of, prune_rtol):
+    """Aligned factors at B (the last columns dropped below ``prune_rtol``), C re-solved."""
+    B, C = svd_align(B, c_step_of(B))
+    if prune_rtol is not None:
+        s = np.sum(B ** 2, axis=0)                   # singular values of X# (aligned)
+        keep = max(int(np.sum(s > prune_rtol * s[0])), 1)
+        B = B[:, :keep]
+    return B, c_step_of(B)
+
+
+def rank_certificate(B, C, Pi, Xi, reg_next):
+    """Whether columns more would lower E at (B, C), and along which directions.
+
+    ``G = dE_data / dX#`` with its components in the column space of B and the row space
+    of C' removed; a new column of weight w lowers E to first order exactly when it pairs
+    with a singular value of that G above w. Singular pairs from the Gram matrix of the
+    shorter side.
+
+    Parameters
+    ----------
+    B, C : (F, r), (3P, r) ndarray
+    Pi, Xi : (F, 3, 3), (F, 3P) ndarray
+        ``R_f'R_f`` and X_init#.
+    reg_next : (m,) ndarray
+        The weights of the next m columns (non-decreasing).
+
+    Returns
+    -------
+    ratio : float
+        ``sigma_1(G_perp) / reg_next[0]``: at most 1 when the rank of ``X# = B C'`` is the
+        prior's choice and not a cap.
+    s, U : (m,), (F, m) ndarray
+        The m largest singular values of G_perp and their left singular vectors.
+    """
+    G = project(Pi, B @ C.T) - Xi
+    Qb, _ = np.linalg.qr(B)
+    Qc, _ = np.linalg.qr(C)
+    G = G - Qb @ (Qb.T @ G)
+    G = G - (G @ Qc) @ Qc.T
+    m = min(len(reg_next), *G.shape)
+    if G.shape[0] <= G.shape[1]:
+        ev, vec = np.linalg.eigh(G @ G.T)
+        U = vec[:, ::-1][:, :m]
+    else:
+        ev, vec = np.linalg.eigh(G.T @ G)
+        U = G @ vec[:, ::-1][:, :m]
+        U = U / np.maximum(np.linalg.norm(U, axis=0), 1e-300)
+    s = np.sqrt(np.maximum(ev[::-1][:m], 0.0))
+    return float(s[0]) / max(float(reg_next[0]), 1e-300), s, U
+
+
+def minimise(B, evaluate, c_step_of, Pi, reg, gtol, max_iter, on_iterate=None,
+             segment=None, prune_rtol=None):
+    """L-BFGS on the reduced objective ``f(B) = min_C E(B, C)`` of (*) from B (F, r).
+
+    In preconditioned variables ``z_f = L_f' B_f`` (``L_f L_f' = H_f`` at the current C),
+    restarted every ``segment`` iterations from :func:`svd_align`-ed factors with a fresh
+    preconditioner (alignment keeps X# and never raises E; without it the columns sort
+    their singular values among the weights over hundreds of iterations). With
+    ``prune_rtol``, aligned columns whose singular value is at most ``prune_rtol`` times the
+    largest are dropped at each restart (they are the last ones, so the weights of the
+    others do not change; ``evaluate`` and ``c_step_of`` must read the weights of the first
+    ``B.shape[1]`` columns); whether they should stay zero is the caller's test
+    (:func:`rank_certificate`).
+
+    Parameters
+    ----------
+    B : (F, r) ndarray
+    evaluate : callable(B, C) -> (E, data, gB, gC)
+        The objective, its data term (or any other measure) and its gradients at (B, C),
+        as :func:`objective` returns them.
+    c_step_of : callable(B) -> C
+    Pi : (F, 3, 3) ndarray
+        ``R_f'R_f``.
+    reg : (r,) ndarray
+    gtol : float
+        Stop at a relative gradient norm (:func:`relative_gradient`) at most gtol.
+    max_iter : int
+    on_iterate : callable(B, C, values) or None
+        Called at the start and after every iteration (e.g. to record a history).
+    segment : int, optional
+        Iterations between restarts (default :data:`SEGMENT`).
+    prune_rtol : float, optional
+        Drop the columns that die (above).
+
+    Returns
+    -------
+    B, C : the factors (aligned, r or fewer columns), rel : the final relative gradient,
+    n_iter : int
+    """
+    F = B.shape[0]
+    segment = SEGMENT if segment is None else segment
+    B, C = _restart(B, c_step_of, None)             # a start's small columns may grow
+    vals = evaluate(B, C)
+    rel = relative_gradient(B, C, vals[2], vals[3])
+    if on_iterate is not None:
+        on_iterate(B, C, vals)
+    n_iter = 0
+    state = {}
+    while rel > gtol and n_iter < max_iter:
+        r = B.shape[1]
+        L, Linv = frame_preconditioner(C, Pi, reg[:r])
+
+        def to_B(z):
+            return np.matmul(z.reshape(F, 1, r), Linv)[:, 0, :]        # L_f^-T z_f
+
+        def fun(z):
+            Bz = to_B(z)
+            Cz = c_step_of(Bz)
+            v = evaluate(Bz, Cz)
+            state["last"] = (z.copy(), Bz, Cz, v)
+            return v[0], np.matmul(Linv, v[2][:, :, None])[:, :, 0].ravel()
+
+        def callback(zk):
+            nonlocal n_iter, rel
+            n_iter += 1
+            z_last, Bk, Ck, v = state["last"]
+            if not np.array_equal(z_last, zk):          # not the last evaluated point
+                Bk = to_B(zk)
+                Ck = c_step_of(Bk)
+                v = evaluate(Bk, Ck)
+            state["B"] = Bk
+            rel = relative_gradient(Bk, Ck, v[2], v[3])
+            if on_iterate is not None:
+                on_iterate(Bk, Ck, v)
+            if rel <= gtol or n_iter >= max_iter:
+                raise _Done
+
+        n_before = n_iter
+        z0 = np.matmul(B[:, None, :], L)[:, 0, :].ravel()                # L_f' B_f
+        state["B"] = B
+        try:
+            out = scipy.optimize.minimize(
+                fun, z0, jac=True, method="L-BFGS-B", callback=callback,
+                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=20,
+                             gtol=0.0, ftol=0.0, maxls=40))
+            B = to_B(out.x)
+        except _Done:
+            B = state["B"]
+        B, C = _restart(B, c_step_of, prune_rtol)
+        vals = evaluate(B, C)
+        rel = relative_gradient(B, C, vals[2], vals[3])
+        if n_iter == n_before:                          # no progress possible (rounding)
+            break
+    return B, C, rel, n_iter
