@@ -37,7 +37,8 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
 * Solver: variable projection (:mod:`.factors`). C is eliminated in closed form (one 3r x 3r
   normal system shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS
   with its exact gradient, preconditioned per frame, from the closed-form rank-K start
-  (r = K) or the leading singular vectors of X_init# (r > K), restarted every few iterations from the SVD-aligned factors of the same X#. Each iteration
+  (r = K) or, for r > K, the leading singular vectors of X_init# with the closed form's
+  depth added, restarted every few iterations from the SVD-aligned factors of the same X#. Each iteration
   is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
   thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
   when the relative gradient norm is below ``gtol``.
@@ -63,7 +64,8 @@ from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
 from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
-from .factors import c_step, minimise, objective, rank_certificate, relative_gradient
+from .factors import (c_step, minimise, objective, project, rank_certificate,
+                      relative_gradient)
 from .common import ShapeResult, check_shape_inputs
 
 __all__ = ["BilinearSettings", "ClosedFormSettings", "GAP_MAX", "bilinear_weights",
@@ -370,7 +372,7 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
         B0 = warm
     else:
         if B0 is None:
-            B0 = _start(Xi, r, cache)
+            B0 = _start(Xi, r, cache, Wn, Rf, Uw, sw, K)
         B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
     B, C, rel, n_iter = minimise(B0, obj.values, obj.c_step, obj.Pi, obj.reg, st.gtol,
                                  st.max_iter, on_iterate=obj.record,
@@ -407,10 +409,17 @@ def _warm_factors(start, Wn, r, why):
     return np.asarray(B, float) / math.sqrt(float(p["normalisation"])), int(p["rank"])
 
 
-def _start(Xi, r, cache):
-    """B0 (F, r) for r > K: the leading left singular vectors of X_init# (its SVD cached)."""
+def _start(Xi, r, cache, Wn, Rf, Uw, sw, K):
+    """B0 (F, r) for r > K: the leading left singular vectors of X_init# with the depth of
+    the closed-form rank-K fit added (``X_init_f + (I - Pi_f) X_K,f``: the image-plane part
+    of W and a depth that fits it; measured against X_init# alone on pickup, drink and yoga
+    with ground-truth rotations, 25 - 40 % fewer iterations to the same answers,
+    ``docs/shape_stage.md``). Its SVD is cached across ranks."""
     if "U" not in cache:
-        cache["U"], cache["s"] = np.linalg.svd(Xi, full_matrices=False)[:2]
+        B, _ = nullspace_coefficients(Uw, sw, Rf, K)
+        X_K = B @ c_step(B, Rf, Wn, np.zeros(K)).T
+        X0 = Xi + X_K - project(Rf.transpose(0, 2, 1) @ Rf, X_K)
+        cache["U"], cache["s"] = np.linalg.svd(X0, full_matrices=False)[:2]
     return cache["U"][:, :r] * np.sqrt(cache["s"][:r])
 
 

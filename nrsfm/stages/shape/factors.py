@@ -24,7 +24,7 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-__all__ = ["SEGMENT", "c_step", "frame_hessians", "frame_preconditioner", "minimise",
+__all__ = ["SEGMENT", "c_step", "frame_hessians", "frame_preconditioner", "minimise", "project",
            "objective", "rank_certificate", "relative_gradient", "svd_align"]
 
 #: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
