@@ -161,6 +161,7 @@ def scale_table(args):
     res.shapes = (shape.shapes if shape is not None else pseudo_inverse_shapes(Wn, R)) * s
     res.method = "organic" if shape is not None else "pseudo_inverse"
     res.K, res.n_points, res.timings = 1, P, {}
+    res.undetermined = np.zeros(P, bool)        # complete tracks: every point seen
     tracks = Tracks(tracks=pix, lost_at=np.full(P, F), fb_error=np.zeros((F, P)),
                     colors=np.full((P, 3), 200, np.uint8), method="dense",
                     image_size=v.frames.shape[1:3])

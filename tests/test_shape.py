@@ -252,15 +252,16 @@ def test_bilinear_reaches_exact_solution_from_a_poor_start():
     assert res.history["cost"][-1] <= res.history["cost"][0]
 
 
-def test_bilinear_gradient_matches_finite_differences():
+@pytest.mark.parametrize("r", [2, 3])        # 3P = 21: factored form (r = 2), X# formed (3)
+def test_bilinear_gradient_matches_finite_differences(r):
     rng = np.random.default_rng(0)
     seq = data_tools.make_synthetic(F=8, P=7, K=2, motion="random", seed=4)
-    F, P, r = 8, 7, 2
+    F, P = 8, 7
     Rf = seq.rotations[:, :2]
     Pi = Rf.transpose(0, 2, 1) @ Rf
     Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(F, 2, P)).reshape(F, 3 * P)
     w2 = float(np.sum(seq.W ** 2))
-    reg = np.array([0.0, 0.3])
+    reg = np.array([0.0, 0.3, 0.7])[:r]
     B, C = rng.standard_normal((F, r)), rng.standard_normal((3 * P, r))
     E, data, gB, gC = _objective(B, C, Pi, Xi, w2, reg)
     X = (B @ C.T).reshape(F, 3, P)

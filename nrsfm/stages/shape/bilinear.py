@@ -59,6 +59,7 @@ from typing import ClassVar, Optional
 import numpy as np
 
 from ...noise import noise_from_singular_values
+from ..measurement import left_singular
 from ...validation import check_choice, check_integer, check_positive
 from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
@@ -322,7 +323,7 @@ def _bilinear(W, R, K, prior, st, progress, start=None):
     if not scale > 0:
         raise ValueError("W is zero: nothing to reconstruct")
     Wn = W / scale
-    Uw, sw, _ = np.linalg.svd(Wn, full_matrices=False)        # one thin SVD of W
+    Uw, sw, _ = left_singular(Wn)           # one thin SVD of W (its Gram matrix if wide)
     r_max = min(F, 3 * P)
     if st.rank is None:
         r, why = prior_rank(sw, K, F, P)
