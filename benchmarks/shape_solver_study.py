@@ -21,17 +21,7 @@ import numpy as np
 import data_tools as dt
 from nrsfm.metrics import e3d
 from nrsfm.stages.shape.bilinear import BilinearSettings, solve_bilinear
-
-
-def svd_unit(repeats=40):
-    """Median seconds of one thin SVD of a seeded 357 x 123 Gaussian matrix."""
-    A = np.random.default_rng(0).standard_normal((357, 123))
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        np.linalg.svd(A, full_matrices=False)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+from stage_timing import svd_unit                     # benchmarks/ (the script's folder)
 
 
 def _timed(W, R, K, settings, repeats):

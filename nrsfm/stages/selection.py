@@ -45,13 +45,11 @@ def shape_for_rotations(W, rotations, K, rotation_stage, settings, say):
     cands = rotation_stage.candidates()
     first = solve_shape(W, cands[0][1], K, settings, say)
     select = settings.select_rotations
+    probe_start = None if select or not settings.solver.warm_start else first
     results = [first]
-    for _, R in cands[1:]:
-        if select or len(results) > 1:
-            results.append(solve_shape(W, R, K, settings, say))
-        else:                                   # the probe: from the first answer
-            start = first if settings.solver.warm_start else None
-            results.append(solve_shape(W, R, K, settings, say, start=start))
+    for i, (_, R) in enumerate(cands[1:]):      # the second: the probe, from the first answer
+        results.append(solve_shape(W, R, K, settings, say,
+                                   start=probe_start if i == 0 else None))
     names = [name for name, _ in cands]
     objectives = [r.prior_objective for r in results]
     pick = 0

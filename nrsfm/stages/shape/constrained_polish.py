@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from . import factors
 from .factors import c_step, minimise
 
 __all__ = ["factor_start", "multiplier_estimate", "rank_certificate", "solve_penalised",
@@ -128,10 +129,7 @@ def rank_certificate(X, Wf, Rf, a, mu, r):
     F = X.shape[0]
     if r >= min(F, X[0].size) or r >= len(a):
         return float("inf")
-    res = np.einsum("fac,fcp->fap", Rf, X) - Wf
-    G = np.einsum("fac,fap->fcp", Rf, res).reshape(F, -1)
-    U, _, Vt = np.linalg.svd(X.reshape(F, -1), full_matrices=False)
-    U, V = U[:, :r], Vt[:r].T
-    G = G - U @ (U.T @ G)
-    G = G - (G @ V) @ V.T
-    return float(np.linalg.norm(G, 2)) / max(mu * float(a[r]), 1e-300)
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    Xi = np.einsum("fac,fap->fcp", Rf, Wf).reshape(F, -1)
+    B, C = factor_start(X, r)
+    return factors.rank_certificate(B, C, Pi, Xi, np.array([mu * float(a[r])]))[0]
