@@ -311,6 +311,8 @@ def test_bilinear_rank_from_W_and_the_prior():
     light = optimize_shapes_bilinear(high.W, high.rotations, 1,       # it wants rank 6
                                      mu=1e-6 * np.linalg.norm(high.W))
     assert light.params["ranks"] == [3, 6] and light.params["live_rank"] == 6
+    # the history holds both fits: each one's start and its iterations
+    assert len(light.history["cost"]) == light.n_iter + len(light.params["ranks"])
     assert light.params["rank_certificate"] <= 1 + CERTIFICATE_SLACK
     assert e3d(light.shapes, high.shapes) < 1e-4
     given = optimize_shapes_bilinear(high.W, high.rotations, 1, rank=3)

@@ -250,12 +250,13 @@ def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None, s
 
 
 class _Objective:
-    """E(B, C) of (*) on normalised W (``||W||_F = 1``), with its iteration record."""
+    """E(B, C) of (*) on normalised W (``||W||_F = 1``), with its iteration record ``hist``
+    (shared by the fits of one solve: each fit's start and iterations in turn)."""
 
-    def __init__(self, Rf, Wn, Xi, reg):
+    def __init__(self, Rf, Wn, Xi, reg, hist):
         self.Rf, self.Wn, self.Xi, self.reg = Rf, Wn, Xi, reg
         self.Pi = Rf.transpose(0, 2, 1) @ Rf
-        self.hist = {"cost": [], "data_term": [], "grad_norm": []}
+        self.hist = hist
 
     def c_step(self, B):
         return c_step(B, self.Rf, self.Wn, self.reg[:B.shape[1]])
@@ -334,7 +335,7 @@ def _bilinear(W, R, K, prior, st, progress, start=None):
     say = progress if callable(progress) else (lambda msg: None)
     Xi3 = Rf.transpose(0, 2, 1) @ Wn.reshape(F, 2, P)
     sigma = _singular_values(Xi3.reshape(F, 3 * P))
-    cache, prune = {}, why == "prior"
+    cache, prune = {"hist": {"cost": [], "data_term": [], "grad_norm": []}}, why == "prior"
     if start is not None:                   # its factors, at its final rank
         cache["warm"], r = _warm_factors(start, Wn, r, why)
     ranks, n_total = [], 0
@@ -362,12 +363,13 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
 
     With ``prune``, columns that die are dropped (:func:`.factors.minimise`) and the result
     carries the rank certificate of the first dropped weight (:func:`rank_certificate`).
-    ``cache`` holds the SVD of X_init# across calls and a warm start (used once)."""
+    ``cache`` holds the SVD of X_init# across calls, a warm start (used once) and the
+    iteration record."""
     F, P = Xi3.shape[0], Xi3.shape[2]
     Xi = Xi3.reshape(F, 3 * P)
     a = bilinear_weights(sigma, r, prior)
     mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
-    obj = _Objective(Rf, Wn, Xi, mu_n * a)
+    obj = _Objective(Rf, Wn, Xi, mu_n * a, cache["hist"])
     warm = cache.pop("warm", None)
     if warm is not None:
         B0 = warm
