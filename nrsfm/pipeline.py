@@ -317,7 +317,9 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
         with _timed(timings, "shape"):
             rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
                                                          settings.shape, say)
-    diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed)
+    diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed,
+                           rotations=rotations, shapes=shape_stage.shapes
+                           if settings.shape.solver.estimates_depth else None)
     if diagnostics.flags:
         warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)

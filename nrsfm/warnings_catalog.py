@@ -130,21 +130,24 @@ CATALOG = {
         dict(cost=0.52, ratio=5.1, pred=0.1, r=36)),
     "W-depth-undetermined": Entry(
         "warning", _FLAG, f"{_DIAG}, `_depth_signal`",
-        "the camera motion does not determine the depth of the deformation: two rotation "
-        "estimates {rot:.3g} apart give shapes {shape:.3g} apart, {ratio:.3g} x as much "
-        "(warned above {ratio_max}), so the depth of the moving parts may be wrong even "
-        "where the images fit; a limit of the data, not of the settings: use views from "
-        "more varied directions",
-        "`depth_sensitivity` (the shapes' change per unit of rotation change between the "
-        "stage's averaged rotations and its best single triplet's, "
-        "`nrsfm.metrics.depth_sensitivity`) above `DEPTH_SENSITIVITY_MAX` = "
-        "{DEPTH_SENSITIVITY_MAX} while the shapes change by more than "
-        "`DEPTH_SHAPE_CHANGE_MIN` = {DEPTH_SHAPE_CHANGE_MIN} (e3d)",
-        "small changes of the cameras move the shapes a lot: the data fit several depths "
-        "of the deformation (e.g. a camera that turns smoothly through a small angle).",
-        "no setting fixes it; a sequence whose camera (or object) turns more, or known "
-        "rotations (`rotations=`), does.",
-        dict(rot=0.021, shape=0.094, ratio=4.5, ratio_max=1.0)),
+        "the camera motion does not determine the depth of the deformation: the cameras "
+        "leave it {amp:.3g} x as open as cameras from all directions would (warned above "
+        "{amp_max}), so the prior, not the images, sets the depth of the moving parts, "
+        "which may be wrong even where the images fit; a limit of the data, not of the "
+        "settings: use views from more varied directions",
+        "`depth_amplification` (`nrsfm.metrics.depth_amplification`: the shapes' energy in "
+        "the combinations of deformation mode and direction that the cameras see least, "
+        "weighted by how little they see them; 1 for cameras from all directions) above "
+        "`DEPTH_AMPLIFICATION_MAX` = {DEPTH_AMPLIFICATION_MAX}, W having 3K directions and a "
+        "`noise_level` above `DEPTH_NOISE_MIN` = {DEPTH_NOISE_MIN:g} (an exactly rank-3K W "
+        "has one exact answer) or the amplification infinite; also with given rotations; "
+        "not for the pseudo-inverse shape stage",
+        "the deformation moves in directions the cameras hardly see while it moves (e.g. a "
+        "camera that turns smoothly through a small angle): measured, e3d above 0.1 even "
+        "with the exact rotations on every such run of the validation set.",
+        "no setting fixes it; a sequence whose camera (or object) turns more while it "
+        "deforms does. Known rotations do not help.",
+        dict(amp=38.0, amp_max=8.0)),
     "W-triplet-unconfirmed": Entry(
         "warning", _FLAG, f"{_DIAG}, `_rotation_signals`",
         "only {hits} of {n_starts} starts of the corrective-triplet search reached its best "
@@ -170,14 +173,33 @@ CATALOG = {
     "W-camera-jumps": Entry(
         "warning", _FLAG, f"{_DIAG}, `_rotation_signals`",
         "the estimated cameras jump between frames: {n} of {F} frames had their depth sign "
-        "set by motion smoothness (warned above {frac_max:.0%}), a sign of wrong rotations; "
+        "set by motion smoothness (warned above {frac_max:.0%}), and the run has other "
+        "warnings or W has fewer than 3K directions: together a sign of wrong rotations; "
         "check that the frames are in time order",
         "`smoothness_sign_fraction` (frames whose depth sign the motion-smoothness rule "
-        "changed) above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}",
-        "consecutive cameras differ by more than 90 degrees in many frames: either the "
-        "rotations are wrong or the frames are not in time order.",
+        "changed) above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, and another diagnostic "
+        "flags the run or the numerical rank of W is below 3K; otherwise it is the note "
+        "`N-camera-jumps`",
+        "consecutive cameras differ by more than 90 degrees in many frames while other "
+        "signals say the rotations are unreliable (a deforming planar object, rank 2K: e3d "
+        ".73): the rotations are likely wrong, or the frames are not in time order.",
         "put the frames in time order; if they are, treat the rotations as failed (see the "
         "run's other warnings).",
+        dict(n=30, F=80, frac_max=0.1)),
+    "N-camera-jumps": Entry(
+        "note", _NOTE, f"{_DIAG}, `_rotation_signals`",
+        "the cameras turn by more than 90 degrees between consecutive frames ({n} of {F} "
+        "frames had their depth sign set by motion smoothness): an orthographic camera does "
+        "not tell a shape from its mirror image in depth, so each of these frames may show "
+        "the mirror image; nothing else in the run looks wrong; no action needed if the "
+        "camera does jump",
+        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, W has "
+        "3K directions and no other diagnostic flags the run",
+        "the cameras and shapes are right up to the depth sign of each frame (a random camera"
+        " per frame on re-projected MoCap: e3d .005-.03, which measures up to a reflection), "
+        "and e_R counts the mirrored frames as errors.",
+        "none if the views are unrelated (photos, a shuffled sequence); if the frames are a "
+        "video in time order, the camera should not jump: check the tracks.",
         dict(n=30, F=80, frac_max=0.1)),
     "W-static-camera": Entry(
         "warning", _FLAG, f"{_DIAG}, `_rotation_signals`",

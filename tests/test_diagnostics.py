@@ -140,3 +140,51 @@ def test_warning_class_and_report(tmp_path, capsys):
     out, err = capsys.readouterr()
     assert err == "", err                   # no other warning (the flag is in the report)
     assert "WARNING: W-rank-deficient: W has only 4 independent directions" in out
+
+
+def test_depth_amplification_reads_the_cameras_against_the_modes():
+    """1 for cameras from all directions, inf for a static camera, large where the
+    deformation moves while the camera turns through a small angle; scale free."""
+    from data_tools.reprojection import reproject, smooth
+    from nrsfm.metrics import depth_amplification
+
+    seq = data_tools.make_synthetic(F=200, P=30, K=2, motion="random", seed=1)
+    amp = depth_amplification(seq.rotations, seq.shapes, 2)
+    assert 0.9 < amp < 1.2
+    assert depth_amplification(seq.rotations, 1e3 * seq.shapes, 2) == pytest.approx(amp)
+    fixed = np.broadcast_to(np.eye(3), seq.rotations.shape)
+    assert depth_amplification(fixed, seq.shapes, 2) == np.inf
+    static = data_tools.make_synthetic(F=60, P=20, K=2, motion="static", seed=0)
+    assert depth_amplification(static.rotations, static.shapes, 2) > 1e3
+    narrow = reproject(seq, smooth(20.0), seed=0)
+    assert depth_amplification(narrow.rotations, narrow.world_shapes, 2) > 10 * amp
+    assert np.isnan(depth_amplification(seq.rotations, 0 * seq.shapes, 2))
+
+
+def test_random_cameras_give_a_note_not_a_warning():
+    """A camera that really jumps between frames: the depth signs come from smoothness,
+    which cannot decide them (a mirror image per frame); a note, no warning."""
+    seq = data_tools.make_synthetic(F=80, P=30, K=2, motion="random", seed=2)
+    res, caught = _run(seq.W, 2)
+    assert caught == [] and not res.diagnostics.flagged
+    assert any(n.startswith("N-camera-jumps: ") for n in res.diagnostics.notes)
+    assert res.diagnostics.signals["smoothness_sign_fraction"] > D.SIGN_FRACTION_MAX
+    assert nrsfm.e3d(res.shapes, seq.shapes) < 1e-6
+
+
+def test_narrow_camera_path_warns_depth_undetermined():
+    """Shapes re-projected by a camera that turns 20 degrees, 1 % noise: the depth of the
+    deformation is the prior's, and the run says so (given rotations too); without noise
+    the rank-3K W has one exact answer and the run is silent."""
+    from data_tools.reprojection import reproject, smooth
+
+    base = data_tools.make_synthetic(F=120, P=30, K=2, seed=3)
+    exact = reproject(base, smooth(20.0), seed=0)
+    res, caught = _run(exact.W, 2, rotations=exact.rotations)
+    assert caught == [] and nrsfm.e3d(res.shapes, exact.shapes) < 1e-6
+    assert res.diagnostics.signals["depth_amplification"] > D.DEPTH_AMPLIFICATION_MAX
+    seq = reproject(base, smooth(20.0), noise=0.01, seed=0)
+    for kw in ({}, dict(rotations=seq.rotations)):
+        res, caught = _run(seq.W, 2, **kw)
+        assert res.diagnostics.signals["depth_amplification"] > D.DEPTH_AMPLIFICATION_MAX
+        assert len(caught) == 1 and "W-depth-undetermined: " in str(caught[0].message)

@@ -98,20 +98,27 @@ def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
     assert lower and other < bad
 
 
-def test_shape_for_the_stage_rotations_and_a_depth_probe():
-    """Default: the shape for the rotation stage's rotations; the best single triplet's
-    are solved from that answer only to measure the depth sensitivity."""
+def test_shape_for_the_stage_rotations_in_one_solve(monkeypatch):
+    """Default: one shape solve, for the rotation stage's rotations; the diagnostics read
+    the depth amplification of that answer (no second solve)."""
+    from nrsfm.stages import selection
+
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
+    calls = []
+    solve = selection.solve_shape
+    monkeypatch.setattr(selection, "solve_shape", lambda *a, **k: calls.append(1) or
+                        solve(*a, **k))
     res = nrsfm.reconstruct(seq.W, 2)
+    assert len(calls) == 1
     sel = res.rotation_stage.info["shape_selection"]
-    assert sel["candidates"] == ["organic", "single_triplet"] and sel["probe"]
-    assert sel["chosen"] == "organic"
+    assert sel["candidates"] == ["organic", "single_triplet"] and sel["depth"] is None
+    assert sel["chosen"] == "organic" and len(sel["objectives"]) == 1
     np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
     given = nrsfm.reconstruct(seq.W, 2, rotations=res.rotations)     # one answer for R
     np.testing.assert_allclose(given.shapes, res.shapes, atol=1e-9 * np.abs(res.shapes).max())
-    depth = sel["depth"]
-    assert depth["ratio"] == pytest.approx(depth["shape_change"] / depth["rotation_change"])
-    assert "depth_sensitivity" in res.diagnostics.signals
+    amp = res.diagnostics.signals["depth_amplification"]
+    assert amp == given.diagnostics.signals["depth_amplification"]
+    assert 0.9 < amp < 2.0 and "depth_sensitivity" not in res.diagnostics.signals
 
 
 def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
@@ -124,7 +131,10 @@ def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
     both = dataclasses.replace(s, shape=dataclasses.replace(s.shape, select_rotations=True))
     res = nrsfm.reconstruct(seq.W, 2, settings=both)
     sel = res.rotation_stage.info["shape_selection"]
-    assert sel["candidates"] == ["organic", "single_triplet"] and not sel["probe"]
+    assert sel["candidates"] == ["organic", "single_triplet"] and len(sel["objectives"]) == 2
+    depth = sel["depth"]
+    assert depth["ratio"] == pytest.approx(depth["shape_change"] / depth["rotation_change"])
+    assert res.diagnostics.signals["depth_sensitivity"] == depth["ratio"]
     best = int(np.argmin(sel["objectives"]))
     assert sel["chosen"] == sel["candidates"][best]
     single = nrsfm.reconstruct(seq.W, 2, method="bmm").rotations
@@ -149,7 +159,7 @@ def test_settings_of_the_issue_18_options():
     s = method_settings()
     assert not s.shape.select_rotations                 # the default: one full solve
     res = nrsfm.reconstruct(seq.W, 2, settings=s)
-    assert res.rotation_stage.info["shape_selection"]["probe"]
+    assert len(res.rotation_stage.info["shape_selection"]["objectives"]) == 1
     np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
 
 

@@ -25,7 +25,7 @@ def constants():
     from nrsfm.stages.shape.closed_form import NULLSPACE_GAP_MIN
 
     names = ["RANK_RTOL", "RANK_GAP_MIN", "CONDITION_MAX", "COST_RATIO_MAX", "KEPT_MIN",
-             "SIGN_FRACTION_MAX", "DEPTH_SENSITIVITY_MAX", "DEPTH_SHAPE_CHANGE_MIN",
+             "SIGN_FRACTION_MAX", "DEPTH_AMPLIFICATION_MAX", "DEPTH_NOISE_MIN",
              "CAMERA_SPREAD_MIN_DEG", "TRANSPOSE_RATIO"]
     out = {n: getattr(diagnostics, n) for n in names}
     out.update(NULLSPACE_GAP_MIN=NULLSPACE_GAP_MIN, INPUT_KEYS=", ".join(INPUT_KEYS))

@@ -55,9 +55,8 @@ class ShapeSettings:
     select_rotations : bool
         When the rotation stage ran: solve the shape in full for each of the stage's
         rotation candidates (its rotations and its best single triplet's) and keep the lower
-        shape objective (:mod:`nrsfm.stages.selection`). False (default): the stage's
-        rotations; the other candidate is solved only as a probe of the depth sensitivity,
-        from the first answer.
+        shape objective (:mod:`nrsfm.stages.selection`). False (default): one solve, for
+        the stage's rotations.
     """
 
     prior: str = "organic"

@@ -45,10 +45,11 @@ class SolverSettings:
     name: ClassVar[str] = ""
     uses_prior: ClassVar[bool] = True
     masked: ClassVar[bool] = False
+    #: False for a solver that does not estimate the depth (the pseudo-inverse keeps
+    #: ``R_f[:2]' W_f``): the diagnostics' depth signal is not read from its shapes
+    estimates_depth: ClassVar[bool] = True
     #: True for a solver whose ``solve`` takes ``start``: its own result on the same W with
-    #: nearby cameras, as its starting point (the depth probe of
-    #: :mod:`nrsfm.stages.selection` solves the second rotation candidate from the first's
-    #: answer)
+    #: nearby cameras, as its starting point (``solve_shape(..., start=)``)
     warm_start: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs):

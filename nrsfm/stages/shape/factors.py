@@ -127,12 +127,18 @@ def frame_hessians(C, Pi, reg):
 
 
 def _cholesky(H):
-    """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n."""
+    """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n.
+
+    A pivot that rounding takes below ``1e-14`` of its matrix's mean diagonal (a singular
+    H_f: shark's exact W on random cameras) is raised to that floor, so that the factor and
+    its inverse stay finite (before, the pivot went to 1e-300 and the inverse overflowed)."""
     r = H.shape[1]
     L = np.zeros_like(H)
+    tr = np.trace(H, axis1=1, axis2=2) / r
+    floor = 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
     for j in range(r):
         Lj = L[:, j, :j]
-        d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), 1e-300))
+        d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), floor))
         L[:, j, j] = d
         if j + 1 < r:
             L[:, j + 1:, j] = (H[:, j + 1:, j]

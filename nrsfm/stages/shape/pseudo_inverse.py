@@ -24,6 +24,7 @@ class PseudoInverseSettings(SolverSettings):
 
     name: ClassVar[str] = "pseudo_inverse"
     uses_prior: ClassVar[bool] = False
+    estimates_depth: ClassVar[bool] = False
 
     def solve(self, W, R, K, prior=None, progress=None, observed=None):
         self.check_observed(observed, W)
