@@ -93,6 +93,8 @@ def candidates(X, obs, undetermined):
            "gated": (np.where(undetermined, np.median(S, axis=0), X), spread_p)}
     from nrsfm.stages.fill import fill_unseen
     out["fill_unseen"] = fill_unseen(X, obs)
+    out["fill_unseen gated"] = (np.where(undetermined, out["fill_unseen"][0], X),
+                                out["fill_unseen"][1])
     return out
 
 

@@ -75,11 +75,11 @@ class Reconstruction:
         Where the input had missing observations: the completion stage's result
         (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
     fill_spread : (P,) ndarray or None
-        Where the points not seen were filled from their neighbours
+        Where the :attr:`undetermined` points were filled from their neighbours
         (``MeasurementSettings.fill = "neighbours"``, the default;
-        :func:`nrsfm.stages.fill.fill_unseen`): each point's fill reliability, the spread
+        :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, the spread
         of its neighbour fills in units of the shapes' RMS radius (larger: less reliable;
-        NaN for a point seen in every frame). :attr:`shape_stage` keeps the shape stage's
+        NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's
         own fill.
     """
 
@@ -337,7 +337,8 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
     spread = None
     if completion is not None and settings.measurement.fill == "neighbours":
         with _timed(timings, "fill"):
-            shapes, spread = fill_unseen(shapes, completion.observed)
+            undetermined = fill_gain(fact.M_hat, completion.observed) > MAX_GAIN
+            shapes, spread = fill_unseen(shapes, completion.observed, undetermined)
     return Reconstruction(rotations=rotations, shapes=shapes, method=settings.method, K=K,
                           W=meas.W, row_means=meas.row_means, scale=meas.scale,
                           factorization=fact, X_init=meas.restore(shape_stage.X_init),

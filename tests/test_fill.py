@@ -42,6 +42,9 @@ def test_rigid_parts_are_filled_exactly_whatever_the_model_says():
     assert err.max() < 1e-2                 # bodies 20 apart, of radius ~1.7
     assert np.all(spread[[3, 10, 17]] < 1e-2)
     assert np.isnan(np.delete(spread, [3, 10, 17])).all()
+    only, spread = fill_unseen(model, obs, points=np.arange(X.shape[2]) == 3)
+    np.testing.assert_array_equal(np.delete(only, 3, axis=2), np.delete(model, 3, axis=2))
+    assert np.isfinite(spread).sum() == 1
 
 
 def test_fill_checks_the_mask():
@@ -62,7 +65,11 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[seen], model.shapes[seen])
     assert not np.allclose(res.shapes[~seen], model.shapes[~seen])
-    lost = ~obs.all(axis=0)
-    assert np.isfinite(res.fill_spread[lost]).all() and np.isnan(res.fill_spread[~lost]).all()
+    filled = res.undetermined                       # the points the data leave undetermined
+    assert filled.any()
+    assert np.isfinite(res.fill_spread[filled]).all()
+    assert np.isnan(res.fill_spread[~filled]).all()
+    kept = np.broadcast_to(~filled[None, None, :], res.shapes.shape)
+    np.testing.assert_array_equal(res.shapes[kept], model.shapes[kept])
     complete = nrsfm.reconstruct(seq.W, 2)
     assert complete.fill_spread is None

@@ -149,7 +149,7 @@ def _fills(X, observed, p, ranked):
     return out
 
 
-def fill_unseen(shapes, observed):
+def fill_unseen(shapes, observed, points=None):
     """The shapes with every point's unseen frames filled from its neighbours.
 
     Parameters
@@ -159,6 +159,10 @@ def fill_unseen(shapes, observed):
         seen in a frame are kept, and give the fills.
     observed : (F, P) bool array_like
         True where a point was seen.
+    points : (P,) bool array_like, optional
+        The points to fill (default: every point not seen in some frame);
+        :func:`nrsfm.reconstruct` passes those the data leave undetermined (the others'
+        model fill is better: uniform missing data, short gaps).
 
     Returns
     -------
@@ -170,8 +174,8 @@ def fill_unseen(shapes, observed):
     spread : (P,) ndarray
         Reliability of each point's fill: the RMS over its unseen frames of the spread
         (root of the summed per-coordinate variance) of its three neighbour fills, in units
-        of the shapes' RMS radius; larger is less reliable. NaN for a point seen in every
-        frame or in none.
+        of the shapes' RMS radius; larger is less reliable. NaN for a point not filled
+        (seen in every frame or in none, or not in ``points``).
     """
     X = check_shapes(shapes, "shapes")
     observed = np.asarray(observed, bool)
@@ -181,7 +185,10 @@ def fill_unseen(shapes, observed):
     filled = X.copy()
     spread = np.full(X.shape[2], np.nan)
     radius = np.sqrt(np.mean(np.sum((X - X.mean(axis=2, keepdims=True)) ** 2, axis=1)))
-    for p in np.flatnonzero(~observed.all(axis=0) & observed.any(axis=0)):
+    todo = ~observed.all(axis=0) & observed.any(axis=0)
+    if points is not None:
+        todo &= np.asarray(points, bool)
+    for p in np.flatnonzero(todo):
         S = _fills(X, observed, p, _candidates(X, observed, p))
         made = np.isfinite(S).all(axis=(0, 2))
         if not made.any():
