@@ -21,6 +21,7 @@ import numpy as np
 from .diagnostics import NRSfMWarning, diagnose
 from .settings import METHODS, Settings, method_settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
+from .stages.fill import fill_unseen
 from .stages.measurement import Factorization, measure
 from .stages.selection import shape_for_rotations
 from .stages.shape import ShapeResult
@@ -73,6 +74,13 @@ class Reconstruction:
     completion : nrsfm.stages.completion.Completion or None
         Where the input had missing observations: the completion stage's result
         (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
+    fill_spread : (P,) ndarray or None
+        Where the :attr:`undetermined` points were filled from their neighbours
+        (``MeasurementSettings.fill = "neighbours"``, the default;
+        :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, the spread
+        of its neighbour fills in units of the shapes' RMS radius (larger: less reliable;
+        NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's
+        own fill.
     """
 
     rotations: np.ndarray
@@ -92,6 +100,7 @@ class Reconstruction:
     observed: np.ndarray = None
     W_completed: np.ndarray = None
     completion: object = None
+    fill_spread: np.ndarray = None
 
     @cached_property
     def fill_gain(self):
@@ -327,6 +336,11 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
         raise ValueError(f"the shapes overflow in the input's units (max|W| = "
                          f"{np.abs(W).max():.3g}); rescale W")
+    spread = None
+    if completion is not None and settings.measurement.fill == "neighbours":
+        with _timed(timings, "fill"):
+            undetermined = fill_gain(fact.M_hat, completion.observed) > MAX_GAIN
+            shapes, spread = fill_unseen(shapes, completion.observed, undetermined)
     return Reconstruction(rotations=rotations, shapes=shapes, method=settings.method, K=K,
                           W=meas.W, row_means=meas.row_means, scale=meas.scale,
                           factorization=fact, X_init=meas.restore(shape_stage.X_init),
@@ -334,7 +348,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                           params=params, timings=timings, diagnostics=diagnostics,
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
-                          completion=completion)
+                          completion=completion, fill_spread=spread)
 
 
 def _settings(settings, **keywords):

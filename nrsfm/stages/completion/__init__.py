@@ -30,10 +30,10 @@ from .factorisation import complete_low_rank, factorise_lagged, fill_gain
 from .lags import NEIGHBOUR_LAGS, NO_LAGS, choose_lags, lag_copies
 from .masks import observed_entries, observed_mask
 from .result import MAX_GAIN, Completion
-from .settings import COMPLETIONS, MISSING, MeasurementSettings
+from .settings import COMPLETIONS, FILLS, MISSING, MeasurementSettings
 from .soft_impute import complete_measurements, soft_impute_lagged
 
-__all__ = ["COMPLETIONS", "Completion", "MAX_GAIN", "MISSING", "MeasurementSettings",
+__all__ = ["COMPLETIONS", "Completion", "FILLS", "MAX_GAIN", "MISSING", "MeasurementSettings",
            "NEIGHBOUR_LAGS", "NO_LAGS", "choose_lags", "complete", "complete_low_rank",
            "complete_measurements", "fill_gain", "observed_entries", "observed_mask"]
 

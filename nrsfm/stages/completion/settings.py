@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["COMPLETIONS", "MISSING", "MeasurementSettings"]
+__all__ = ["COMPLETIONS", "FILLS", "MISSING", "MeasurementSettings"]
 
 #: What to do with missing observations (``MeasurementSettings.missing``).
 MISSING = ("complete", "error")
 #: How W is completed (``MeasurementSettings.completion``); the first is the default.
 COMPLETIONS = ("auto", "factorisation", "soft_impute")
+#: How the shapes of the points not seen are filled (``MeasurementSettings.fill``).
+FILLS = ("neighbours", "model")
 
 
 def _choices(values):
@@ -43,15 +45,22 @@ class MeasurementSettings:
     lags : "auto" or tuple of int
         Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
         of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
+    fill : {_choices(FILLS)}
+        The 3D of a point in the frames it was not seen in: ``neighbours`` (default), the
+        median of its rigid, template and affine fills from its neighbours and of the
+        shape stage's fill (:func:`nrsfm.stages.fill.fill_unseen`, issue 24); ``model``:
+        the shape stage's fill alone.
     """
 
     missing: str = MISSING[0]
     completion: str = COMPLETIONS[0]
     lags: object = "auto"
+    fill: str = FILLS[0]
 
     def __post_init__(self):
         _one_of("missing", self.missing, MISSING)
         _one_of("completion", self.completion, COMPLETIONS)
+        _one_of("fill", self.fill, FILLS)
         if self.lags != "auto":
             lags = tuple(self.lags) if isinstance(self.lags, (tuple, list)) else None
             if (lags is None or not all(isinstance(d, int) for d in lags) or 0 not in lags
