@@ -76,7 +76,7 @@ class Reconstruction:
         (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
     fill_spread : (P,) ndarray or None
         Where the :attr:`undetermined` points were filled from their neighbours
-        (``MeasurementSettings.fill = "neighbours"``, the default;
+        (``MeasurementSettings.fill = "neighbours"``;
         :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, the spread
         of its neighbour fills in units of the shapes' RMS radius (larger: less reliable;
         NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's

@@ -58,9 +58,9 @@ def test_fill_checks_the_mask():
 def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
     W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
-    res = nrsfm.reconstruct(W, 2)
-    model = nrsfm.reconstruct(W, 2, settings=Settings(
-        measurement=MeasurementSettings(fill="model")))
+    res = nrsfm.reconstruct(W, 2, settings=Settings(
+        measurement=MeasurementSettings(fill="neighbours")))
+    model = nrsfm.reconstruct(W, 2)                 # the default: the shape stage's fill
     assert model.fill_spread is None and "fill" in res.timings
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[seen], model.shapes[seen])
@@ -71,5 +71,6 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     assert np.isnan(res.fill_spread[~filled]).all()
     kept = np.broadcast_to(~filled[None, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[kept], model.shapes[kept])
-    complete = nrsfm.reconstruct(seq.W, 2)
+    complete = nrsfm.reconstruct(seq.W, 2, settings=Settings(
+        measurement=MeasurementSettings(fill="neighbours")))
     assert complete.fill_spread is None

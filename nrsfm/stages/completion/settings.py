@@ -10,8 +10,11 @@ __all__ = ["COMPLETIONS", "FILLS", "MISSING", "MeasurementSettings"]
 MISSING = ("complete", "error")
 #: How W is completed (``MeasurementSettings.completion``); the first is the default.
 COMPLETIONS = ("auto", "factorisation", "soft_impute")
-#: How the shapes of the points not seen are filled (``MeasurementSettings.fill``).
-FILLS = ("neighbours", "model")
+#: How the shapes of the points not seen are filled (``MeasurementSettings.fill``); the
+#: first is the default (``neighbours`` fills better on lost tracks but is a loop over the
+#: points: 3 - 11 s on the synthetic videos against 0.1 s for the shape stage,
+#: docs/missing_data_scale.md, issue 24)
+FILLS = ("model", "neighbours")
 
 
 def _choices(values):
@@ -46,10 +49,10 @@ class MeasurementSettings:
         Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
         of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
     fill : {_choices(FILLS)}
-        The 3D of a point in the frames it was not seen in: ``neighbours`` (default), the
+        The 3D of a point in the frames it was not seen in: ``model`` (default), the
+        shape stage's fill; ``neighbours``, for the points the data leave undetermined, the
         median of its rigid, template and affine fills from its neighbours and of the
-        shape stage's fill (:func:`nrsfm.stages.fill.fill_unseen`, issue 24); ``model``:
-        the shape stage's fill alone.
+        shape stage's fill (:func:`nrsfm.stages.fill.fill_unseen`, issue 24).
     """
 
     missing: str = MISSING[0]
