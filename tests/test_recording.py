@@ -403,3 +403,26 @@ def test_rrd_screenshot_script_errors(tmp_path):
     assert out.returncode != 0
     assert "no such recording" in out.stderr and "Traceback" not in out.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_missing_data_draws_the_filled_points_by_their_reliability(tmp_path):
+    """With missing data the recording holds /world/shapes/filled: per frame, the points not
+    observed there, coloured from yellow (fill gain 1) to red (gain MAX_GAIN^2)."""
+    from nrsfm.stages.completion import MAX_GAIN
+    from nrsfm.views.recording import fill_colors
+
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
+    W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
+    res = nrsfm.reconstruct(W, 2)
+    c = recording_content(res, seq)
+    np.testing.assert_array_equal(c.filled, ~obs)
+    np.testing.assert_allclose(c.fill_gain, res.fill_gain)
+    path = save_recording(res, tmp_path / "missing.rrd", sequence=seq)
+    filled = read_rrd(path)["/world/shapes/filled"]
+    positions, frames = column(filled["temporal"], "Points3D:positions", "frame")
+    assert [len(p) for p in positions] == list((~obs).sum(axis=1))
+    colours = fill_colors(np.array([1.0, MAX_GAIN, MAX_GAIN ** 2, np.inf]))
+    assert colours[0, 1] == 230 and colours[2, 1] == 0 and colours[3, 1] == 0
+    assert colours[0, 1] > colours[1, 1] > colours[2, 1]
+    complete = recording_content(nrsfm.reconstruct(seq.W, 2), seq)
+    assert complete.filled is None

@@ -56,6 +56,8 @@ class RecordingContent:
     camera_distance: float = 1.0
     axis_length: float = 0.3
     tracks: np.ndarray | None = None          # (F, P, 2) measured (centred) W
+    filled: np.ndarray | None = None          # (F, P) bool: not observed, the 3D a fill
+    fill_gain: np.ndarray | None = None       # (P,) the fill's noise gain (reliability)
     reprojected: np.ndarray | None = None     # (F, P, 2) R_f X_f
     triplet_rotations: np.ndarray | None = None   # (K, F, 3, 3) registered, display-aligned
     triplet_kept: np.ndarray | None = None        # (K, F) bool
@@ -124,6 +126,9 @@ def _world_content(result, sequence):
     Wt = np.asarray(result.W, float).reshape(F, 2, P)
     c.tracks = Wt.transpose(0, 2, 1).copy()
     c.reprojected = (R_est[:, :2] @ X_est).transpose(0, 2, 1).copy()
+    if getattr(result, "observed", None) is not None:
+        c.filled = ~np.asarray(result.observed, bool)
+        c.fill_gain = np.asarray(result.fill_gain, float)
     return c, Q, R_gt
 
 

@@ -11,6 +11,10 @@ Entity paths (timeline in brackets)
 -----------------------------------
 * ``/world/shapes/estimate`` Points3D, the aligned estimate [frame];
   ``/world/shapes/estimate/skeleton`` LineStrips3D where the sequence has edges [frame]
+* ``/world/shapes/filled`` Points3D, with missing data: the points not observed in the
+  frame (their 3D is a fill), larger, coloured by their fill's noise gain
+  (``Reconstruction.fill_gain``: yellow at 1, orange at ``MAX_GAIN`` where a track becomes
+  undetermined, red at ``MAX_GAIN^2`` and above) [frame]
 * ``/world/shapes/ground_truth`` (small points), ``.../rings`` (wireframe spheres around
   them, Ellipsoids3D) and ``.../skeleton`` [frame]
 * ``/world/cameras/estimate``, ``/world/cameras/ground_truth``: Transform3D camera -> world
@@ -72,6 +76,31 @@ POINT_RADIUS = 0.016
 LINE_RADIUS = 0.4
 
 
+def fill_colors(gain):
+    """(n, 4) uint8: yellow at gain 1, orange at ``MAX_GAIN``, red at ``MAX_GAIN^2`` and
+    above (log scale), for the points of :func:`_log_filled`."""
+    from ..stages.completion import MAX_GAIN
+
+    t = np.clip(np.log(np.maximum(gain, 1.0)) / (2.0 * np.log(MAX_GAIN)), 0.0, 1.0)
+    out = np.empty((t.size, 4), np.uint8)
+    out[:, 0], out[:, 1], out[:, 2], out[:, 3] = 255, (230 * (1.0 - t)).astype(int), 30, 255
+    return out
+
+
+def _log_filled(rec, rr, c, radius):
+    """The points not observed in each frame, where the input had missing data."""
+    if c.filled is None or not c.filled.any():
+        return
+    F, P = c.filled.shape
+    pts = [c.shapes_est[f][c.filled[f]] for f in range(F)]
+    gain = np.broadcast_to(c.fill_gain, (F, P))[c.filled]
+    rec.send_columns("/world/shapes/filled", indexes=[rr.TimeColumn("frame", sequence=c.frames)],
+                     columns=rr.Points3D.columns(positions=np.concatenate(pts),
+                                                 colors=fill_colors(gain))
+                     .partition([len(p) for p in pts]))
+    rec.log("/world/shapes/filled", rr.Points3D.from_fields(radii=[radius]), static=True)
+
+
 def _log_shapes(rec, rr, c, r_pt, r_ln):
     """Estimate: small bright points; ground truth: small dots inside wireframe rings, so
     an estimate that sits on it stays visible and one that misses it shows as a blue dot
@@ -82,6 +111,7 @@ def _log_shapes(rec, rr, c, r_pt, r_ln):
     if has_edges:
         rl.send_skeleton(rec, rr, "/world/shapes/estimate/skeleton", c.shapes_est, c.edges,
                          fr, ESTIMATE_COLOR, r_ln)
+    _log_filled(rec, rr, c, 1.8 * r_pt)
     if c.shapes_gt is None:
         return
     path = "/world/shapes/ground_truth"
