@@ -62,7 +62,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .metrics import depth_amplification
 from .noise import noise_from_singular_values
 from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum
 from .warnings_catalog import UNRELIABLE, text
@@ -209,8 +208,8 @@ def _dai_cost_per_frame(Wc, K, seed=0):
     return float(cor.costs[0]) / (Wc.shape[0] // 2)
 
 
-def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0, rotations=None,
-             shapes=None):
+def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0,
+             depth_amplification=None):
     """Measure the quality signals of a run and flag those beyond their thresholds.
 
     Parameters
@@ -226,9 +225,10 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0, rot
         None when the rotations were given.
     seed : int
         For the transpose test's triplet search.
-    rotations : (F, 3, 3) ndarray, optional
-    shapes : (F, 3, P) ndarray, optional
-        The run's rotations (estimated or given) and shapes, for the depth signal.
+    depth_amplification : float, optional
+        :func:`nrsfm.metrics.depth_amplification` of the run's rotations (estimated or
+        given) and shapes (the pipeline measures it: it needs the shapes, which the
+        diagnostics do not see); None: no depth signal.
 
     Returns
     -------
@@ -261,7 +261,7 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0, rot
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
 
     if rank >= r:
-        _depth_signal(rotations, shapes, K, sig, flags)
+        _depth_signal(depth_amplification, sig, flags)
     if rotation_stage is not None and M_hat is not None:
         _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, rank >= r, sig, flags,
                           notes)
@@ -300,15 +300,14 @@ def _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes):
     return cost, ratio
 
 
-def _depth_signal(rotations, shapes, K, sig, flags):
-    """Whether the camera motion determines the depth of the deformation
-    (:func:`nrsfm.metrics.depth_amplification` of the run's rotations and shapes). Only
+def _depth_signal(amp, sig, flags):
+    """Whether the camera motion determines the depth of the deformation (``amp``:
+    :func:`nrsfm.metrics.depth_amplification` of the run's rotations and shapes). Only
     for W with 3K directions: below, W does not determine all of the shapes' modes, and
     the split between camera motion and deformation is not unique (shark: 84,000 on a run
     with e3d .016); the rank signal speaks for those runs."""
-    if rotations is None or shapes is None:
+    if amp is None:
         return
-    amp = depth_amplification(rotations, shapes, K)
     sig["depth_amplification"] = amp
     if amp > DEPTH_AMPLIFICATION_MAX and (sig["noise_level"] > DEPTH_NOISE_MIN or
                                           not np.isfinite(amp)):

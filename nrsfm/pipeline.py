@@ -19,6 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from .diagnostics import NRSfMWarning, diagnose
+from .metrics import depth_amplification
 from .settings import METHODS, Settings, method_settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import fill_unseen
@@ -326,9 +327,10 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
         with _timed(timings, "shape"):
             rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
                                                          settings.shape, say)
+    amp = (depth_amplification(rotations, shape_stage.shapes, K)
+           if settings.shape.solver.estimates_depth else None)
     diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed,
-                           rotations=rotations, shapes=shape_stage.shapes
-                           if settings.shape.solver.estimates_depth else None)
+                           depth_amplification=amp)
     if diagnostics.flags:
         warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)
