@@ -7,6 +7,7 @@ import data_tools
 import nrsfm
 from nrsfm.settings import Settings
 from nrsfm.stages.completion import MeasurementSettings
+from nrsfm.stages import fill
 from nrsfm.stages.fill import fill_unseen
 from nrsfm.geometry import project_to_so3
 
@@ -74,3 +75,164 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     complete = nrsfm.reconstruct(seq.W, 2, settings=Settings(
         measurement=MeasurementSettings(fill="neighbours")))
     assert complete.fill_spread is None
+
+
+# the definition: the per-point loop the batched fill replaced (kept here to test it)
+
+
+
+def _ref_kabsch(A, B):
+    """(n, 3, 3) rotations (no reflection) with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)."""
+    A = A - A.mean(axis=2, keepdims=True)
+    B = B - B.mean(axis=2, keepdims=True)
+    U, _, Vt = np.linalg.svd(B @ A.transpose(0, 2, 1))
+    U = U.copy()
+    U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
+    return U @ Vt
+
+
+def _ref_candidates(X, observed, p):
+    """p's candidate neighbours ranked by mean distance over the frames both are seen
+    (nearest first; only those seen with p in 3 frames or more)."""
+    seen = np.flatnonzero(observed[:, p])
+    sample = seen[np.linspace(0, seen.size - 1, min(fill._SAMPLE, seen.size)).astype(int)]
+    d = np.linalg.norm(X[sample] - X[sample][:, :, p:p + 1], axis=1)
+    both = observed[sample]
+    coarse = np.where(both, d, 0).sum(0) / np.maximum(both.sum(0), 1)
+    coarse[(both.sum(0) == 0) | (np.arange(X.shape[2]) == p)] = np.inf
+    pool = np.argsort(coarse, kind="stable")[:fill._POOL]
+    pool = pool[np.isfinite(coarse[pool])]
+    both = observed[seen][:, pool]
+    d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p:p + 1], axis=1)
+    n = both.sum(0)
+    mean = np.where(both, d, 0).sum(0) / np.maximum(n, 1)
+    keep = n >= 3
+    return pool[keep][np.argsort(mean[keep], kind="stable")]
+
+
+def _ref_neighbour_sets(observed, frames, ranked, n):
+    """[(neighbours, frames)]: in each of ``frames``, the first ``n`` of ``ranked`` seen
+    there; frames with fewer than 3 are left out."""
+    avail = observed[np.ix_(frames, ranked)]
+    sel = avail & (np.cumsum(avail, axis=1) <= n)
+    ok = sel.sum(axis=1) >= 3
+    if not ok.any():
+        return []
+    patterns, inverse = np.unique(sel[ok], axis=0, return_inverse=True)
+    inverse = np.ravel(inverse)
+    return [(ranked[pat], frames[ok][inverse == i]) for i, pat in enumerate(patterns)]
+
+
+def _ref_nearest_seen(seen, frames):
+    """(len(frames),) for each frame, the frame of ``seen`` (sorted) nearest in time."""
+    if seen.size == 1:
+        return np.full(frames.size, seen[0])
+    i = np.clip(np.searchsorted(seen, frames), 1, seen.size - 1)
+    return np.where(np.abs(seen[i - 1] - frames) <= np.abs(seen[i] - frames),
+                    seen[i - 1], seen[i])
+
+
+def _ref_rigid(X, observed, p, ranked, unseen):
+    """(F, 3) the rigid fill (NaN where not made): from the frame r seen nearest in time,
+    the ``fill.RIGID_NEIGHBOURS`` candidates nearest to p in r among those seen in r and f."""
+    out = np.full(X[:, :, p].shape, np.nan)
+    refs = _ref_nearest_seen(np.flatnonzero(observed[:, p]), unseen)
+    for r in np.unique(refs):
+        d = np.linalg.norm(X[r][:, ranked] - X[r][:, p:p + 1], axis=0)
+        order = ranked[np.argsort(np.where(observed[r, ranked], d, np.inf), kind="stable")]
+        order = order[observed[r, order]]
+        for nb, frames in _ref_neighbour_sets(observed, unseen[refs == r], order,
+                                          fill.RIGID_NEIGHBOURS):
+            A, B = X[r][:, nb], X[frames][:, :, nb]
+            R = _ref_kabsch(np.broadcast_to(A, B.shape), B)
+            out[frames] = (np.einsum("fij,j->fi", R, X[r][:, p] - A.mean(axis=1))
+                           + B.mean(axis=2))
+    return out
+
+
+def _ref_template(X, p, nb, both, frames, iters=3):
+    """The point in its neighbours' frame averaged over ``both`` (GPA), carried."""
+    A = X[both][:, :, nb]
+    a = X[both][:, :, p] - A.mean(axis=2)
+    A = A - A.mean(axis=2, keepdims=True)
+    Z = A[-1]
+    for _ in range(iters):
+        R = _ref_kabsch(A, np.broadcast_to(Z, A.shape))
+        Z = (R @ A).mean(axis=0)
+    z = np.einsum("nij,nj->ni", R, a).mean(axis=0)
+    B = X[frames][:, :, nb]
+    R = _ref_kabsch(np.broadcast_to(Z, B.shape), B)
+    return np.einsum("fij,j->fi", R, z) + B.mean(axis=2)
+
+
+def _ref_affine(X, p, nb, both, frames):
+    """``mean_N + sum_j b_j (x_j - mean_N)``, b fitted (ridge) on ``both``."""
+    A = X[both][:, :, nb]
+    c = A.mean(axis=2, keepdims=True)
+    D = (A - c).reshape(-1, len(nb))
+    y = (X[both][:, :, p] - c[:, :, 0]).reshape(-1)
+    G = D.T @ D
+    b = np.linalg.solve(G + fill.RIDGE * np.trace(G) / len(nb) * np.eye(len(nb)), D.T @ y)
+    B = X[frames][:, :, nb]
+    c = B.mean(axis=2)
+    return c + np.einsum("fik,k->fi", B - c[:, :, None], b)
+
+
+def _ref_fills(X, observed, p, ranked):
+    """(3, F, 3) the rigid, template and affine fills of p (NaN where not made)."""
+    unseen = np.flatnonzero(~observed[:, p])
+    out = np.full((3,) + X[:, :, p].shape, np.nan)
+    out[0] = _ref_rigid(X, observed, p, ranked, unseen)
+    for n, k, make in ((fill.RIGID_NEIGHBOURS, 1, _ref_template),
+                       (fill.AFFINE_NEIGHBOURS, 2, _ref_affine)):
+        for nb, frames in _ref_neighbour_sets(observed, unseen, ranked, n):
+            both = np.flatnonzero(observed[:, p] & observed[:, nb].all(axis=1))
+            if both.size >= 2:
+                out[k, frames] = make(X, p, nb, both, frames)
+    return out
+
+
+def _ref_fill_unseen(X, observed, points):
+    """The per-point loop of ``fill_unseen`` before it was batched (its definition)."""
+    filled, spread = X.copy(), np.full(X.shape[2], np.nan)
+    radius = np.sqrt(np.mean(np.sum((X - X.mean(axis=2, keepdims=True)) ** 2, axis=1)))
+    todo = ~observed.all(axis=0) & observed.any(axis=0) & points
+    for p in np.flatnonzero(todo):
+        S = _ref_fills(X, observed, p, _ref_candidates(X, observed, p))
+        made = np.isfinite(S).all(axis=(0, 2))
+        if not made.any():
+            continue
+        S, frames = S[:, made], np.flatnonzero(made)
+        filled[frames, :, p] = np.median(np.concatenate([S, X[frames, :, p][None]]), axis=0)
+        spread[p] = np.sqrt(np.mean(np.sum(S.var(axis=0), axis=1))) / radius
+    return filled, spread
+
+
+def _deforming_parts(seed):
+    """Shapes of rigid parts with a smooth deformation, and a mask of lost, late and
+    blocked tracks (some seen in 1 - 3 frames only)."""
+    rng = np.random.default_rng(seed)
+    X = _rigid_parts(F=30, parts=4, size=10, seed=seed)
+    t = np.linspace(0, 1, X.shape[0])[:, None, None]
+    X = X + 0.3 * np.sin(3 * t + rng.uniform(0, 6, (1, 3, X.shape[2])))
+    obs = np.ones((X.shape[0], X.shape[2]), bool)
+    for p in rng.choice(X.shape[2], 20, replace=False):
+        a, b = np.sort(rng.integers(0, X.shape[0] + 1, 2))
+        kind = rng.integers(3)
+        obs[:, p] = ((np.arange(X.shape[0]) < a) if kind == 0 else
+                     (np.arange(X.shape[0]) >= b - 3) if kind == 1 else
+                     ~((np.arange(X.shape[0]) >= a) & (np.arange(X.shape[0]) < b)))
+    obs[:, 0] = np.arange(X.shape[0]) == 4                          # seen once
+    return X, obs
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_batched_fill_equals_the_per_point_definition(seed):
+    X, obs = _deforming_parts(seed)
+    points = np.random.default_rng(seed).random(X.shape[2]) < 0.8
+    filled, spread = fill_unseen(X, obs, points)
+    ref, ref_spread = _ref_fill_unseen(X, obs, points)
+    assert np.isfinite(spread).sum() > 10
+    np.testing.assert_allclose(filled, ref, rtol=0, atol=1e-10)
+    np.testing.assert_array_equal(np.isnan(spread), np.isnan(ref_spread))
+    np.testing.assert_allclose(spread, ref_spread, rtol=1e-10)

@@ -21,9 +21,16 @@ neighbour fills (RMS over the point's unseen frames, in units of the shapes' RMS
 is returned as the fill's reliability: it predicts the fill's error (Spearman 0.4-0.97 over
 the lost points of the MoCap sequences). Measurements: ``docs/missing_data_scale.md``,
 section "Issue 24".
+
+The computation is batched over the points and their unseen frames (same definition as
+the per-point loop it replaced, to rounding; ``tests/test_fill.py`` keeps that loop): the
+candidates whose mean distance can be among the 16 smallest are found with a KD-tree per
+frame (a candidate's mean distance over frames is at least its distance in one of them).
 """
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 
@@ -37,6 +44,7 @@ RIGID_NEIGHBOURS, AFFINE_NEIGHBOURS = 4, 6
 RIDGE = 1e-2
 _POOL = 16          # candidate neighbours per point (ranked exactly); sampled frames:
 _SAMPLE = 20        # frames of the point's that pick the candidates
+_CHUNK = 1 << 20    # (pair, frame) distances computed at once
 
 
 def _kabsch(A, B):
@@ -49,106 +57,258 @@ def _kabsch(A, B):
     return U @ Vt
 
 
-def _candidates(X, observed, p):
-    """p's candidate neighbours ranked by mean distance over the frames both are seen
-    (nearest first; only those seen with p in 3 frames or more)."""
-    seen = np.flatnonzero(observed[:, p])
-    sample = seen[np.linspace(0, seen.size - 1, min(_SAMPLE, seen.size)).astype(int)]
-    d = np.linalg.norm(X[sample] - X[sample][:, :, p:p + 1], axis=1)
-    both = observed[sample]
-    coarse = np.where(both, d, 0).sum(0) / np.maximum(both.sum(0), 1)
-    coarse[(both.sum(0) == 0) | (np.arange(X.shape[2]) == p)] = np.inf
-    pool = np.argsort(coarse, kind="stable")[:_POOL]
-    pool = pool[np.isfinite(coarse[pool])]
-    both = observed[seen][:, pool]
-    d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p:p + 1], axis=1)
-    n = both.sum(0)
-    mean = np.where(both, d, 0).sum(0) / np.maximum(n, 1)
+def _dist(a, b):
+    """Distances of the (..., 3) points a and b, summed in the order x, y, z."""
+    d = a - b
+    return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+
+
+def _mean_distance(Xt, O, p, q, frames, valid):
+    """(mean, count) for each pair (p[i], q[i]): the mean distance over the frames
+    ``frames[i][valid[i]]`` (in order) in which q[i] is seen, and their number."""
+    mean, count = np.empty(p.size), np.empty(p.size, int)
+    F = Xt.shape[1]
+    flat, seen = Xt.reshape(-1, 3), O.T.ravel()
+    step = max(1, _CHUNK // max(frames.shape[1], 1))
+    for s in range(0, p.size, step):
+        i = slice(s, s + step)
+        f = frames[i].T                                         # (frames, pairs)
+        iq = q[i] * F + f
+        both = valid[i].T & seen.take(iq)
+        d = _dist(flat.take(iq, axis=0), flat.take(p[i] * F + f, axis=0))
+        count[i] = both.sum(axis=0)
+        mean[i] = np.where(both, d, 0).sum(axis=0) / np.maximum(count[i], 1)
+    return mean, count
+
+
+def _unique_pairs(slot, q, P):
+    """The distinct (slot, q) pairs, sorted."""
+    key = np.sort(slot * P + q)
+    key = key[np.append(True, key[1:] != key[:-1])]
+    return key // P, key % P
+
+
+def _samples(O, todo):
+    """(n, S) frames and validity: each point's seen frames (all) and ``_SAMPLE`` of them
+    spread evenly (the candidates' frames), padded."""
+    seen = O[:, todo].T
+    n = seen.sum(axis=1)
+    allf = np.zeros((todo.size, max(n.max(), 1)), int)
+    allv = np.arange(allf.shape[1]) < n[:, None]
+    allf[allv] = np.nonzero(seen)[1]
+    m = np.minimum(_SAMPLE, n)
+    j = np.zeros((todo.size, _SAMPLE), int)
+    sv = np.arange(_SAMPLE) < m[:, None]
+    for k in np.unique(n):                  # np.linspace, as the per-point definition
+        j[n == k, :min(_SAMPLE, k)] = np.linspace(0, k - 1, min(_SAMPLE, k)).astype(int)
+    return np.take_along_axis(allf, j, axis=1), sv, allf, allv
+
+
+def _near_pairs(Xt, O, todo, sf, sv):
+    """(point slot, candidate) pairs holding every candidate whose mean distance over the
+    point's sampled frames is at most the 16th smallest: such a candidate is within that
+    distance of the point in one of those frames (KD-tree per frame; the bound from the
+    16 nearest in each frame)."""
+    from scipy.spatial import cKDTree
+
+    P = Xt.shape[0]
+    frames = [(f, np.flatnonzero(((sf == f) & sv).any(axis=1)), np.flatnonzero(O[f]))
+              for f in np.unique(sf[sv])]
+    trees = [cKDTree(Xt[ids, f], balanced_tree=False, compact_nodes=False)
+             for f, _, ids in frames]
+    slot, cand = [], []
+    for (f, rows, ids), tree in zip(frames, trees):
+        k = min(_POOL + 1, ids.size)
+        slot.append(np.repeat(rows, k))
+        cand.append(ids[tree.query(Xt[todo[rows], f], k=k)[1].reshape(-1)])
+    slot, q = _unique_pairs(np.concatenate(slot), np.concatenate(cand), P)
+    mean, count = _mean_distance(Xt, O, todo[slot], q, sf[slot], sv[slot])
+    mean = np.where((count > 0) & (q != todo[slot]), mean, np.inf)
+    order = np.lexsort((mean, slot))
+    start = np.searchsorted(slot[order], np.arange(todo.size))
+    n = np.diff(np.append(start, slot.size))
+    tau = np.full(todo.size, 2 * np.abs(Xt).max() + 1.0)
+    ok = n >= _POOL
+    tau16 = mean[order][np.minimum(start + _POOL - 1, slot.size - 1)]
+    ok &= np.isfinite(tau16)
+    tau[ok] = tau16[ok]
+    slot, cand = [], []
+    for (f, rows, ids), tree in zip(frames, trees):
+        hits = tree.query_ball_point(Xt[todo[rows], f], tau[rows] * (1 + 1e-9) + 1e-12,
+                                     return_sorted=False)
+        lens = np.fromiter(map(len, hits), int, rows.size)
+        slot.append(np.repeat(rows, lens))
+        cand.append(ids[np.fromiter(itertools.chain.from_iterable(hits), int, lens.sum())])
+    return _unique_pairs(np.concatenate(slot), np.concatenate(cand), P)
+
+
+def _first(key, slot, n):
+    """Indices of the first ``n`` entries of each slot (entries sorted by slot)."""
+    start = np.searchsorted(slot, np.arange(slot.max() + 1 if slot.size else 0))
+    rank = np.arange(slot.size) - start[slot]
+    return key[rank < n]
+
+
+def _candidates(Xt, O, todo):
+    """(n, _POOL) each point's candidate neighbours (-1: none), nearest first by mean
+    distance over the frames both are seen (only those seen with it in 3 frames or more),
+    from the ``_POOL`` nearest by mean distance over its sampled frames."""
+    sf, sv, allf, allv = _samples(O, todo)
+    slot, q = _near_pairs(Xt, O, todo, sf, sv)
+    coarse, count = _mean_distance(Xt, O, todo[slot], q, sf[slot], sv[slot])
+    ok = (count > 0) & (q != todo[slot])
+    slot, q, coarse = slot[ok], q[ok], coarse[ok]
+    order = np.lexsort((q, coarse, slot))
+    pick = _first(order, slot[order], _POOL)
+    slot, q, coarse = slot[pick], q[pick], coarse[pick]
+    mean, n = _mean_distance(Xt, O, todo[slot], q, allf[slot], allv[slot])
     keep = n >= 3
-    return pool[keep][np.argsort(mean[keep], kind="stable")]
+    slot, q, mean, coarse = slot[keep], q[keep], mean[keep], coarse[keep]
+    order = np.lexsort((q, coarse, mean, slot))
+    out = np.full((todo.size, _POOL), -1)
+    slot, q = slot[order], q[order]
+    start = np.searchsorted(slot, np.arange(todo.size))
+    out[slot, np.arange(slot.size) - start[slot]] = q
+    return out
 
 
-def _neighbour_sets(observed, frames, ranked, n):
-    """[(neighbours, frames)]: in each of ``frames``, the first ``n`` of ``ranked`` seen
-    there; frames with fewer than 3 are left out."""
-    avail = observed[np.ix_(frames, ranked)]
+def _select(avail, n):
+    """(m, S) bool: the first ``n`` available of each row; rows with fewer than 3 none."""
     sel = avail & (np.cumsum(avail, axis=1) <= n)
-    ok = sel.sum(axis=1) >= 3
-    if not ok.any():
-        return []
-    patterns, inverse = np.unique(sel[ok], axis=0, return_inverse=True)
-    inverse = np.ravel(inverse)
-    return [(ranked[pat], frames[ok][inverse == i]) for i, pat in enumerate(patterns)]
+    return sel & (sel.sum(axis=1) >= 3)[:, None]
 
 
-def _nearest_seen(seen, frames):
-    """(len(frames),) for each frame, the frame of ``seen`` (sorted) nearest in time."""
-    if seen.size == 1:
-        return np.full(frames.size, seen[0])
-    i = np.clip(np.searchsorted(seen, frames), 1, seen.size - 1)
-    return np.where(np.abs(seen[i - 1] - frames) <= np.abs(seen[i] - frames),
-                    seen[i - 1], seen[i])
-
-
-def _rigid(X, observed, p, ranked, unseen):
-    """(F, 3) the rigid fill (NaN where not made): from the frame r seen nearest in time,
-    the ``RIGID_NEIGHBOURS`` candidates nearest to p in r among those seen in r and f."""
-    out = np.full(X[:, :, p].shape, np.nan)
-    refs = _nearest_seen(np.flatnonzero(observed[:, p]), unseen)
-    for r in np.unique(refs):
-        d = np.linalg.norm(X[r][:, ranked] - X[r][:, p:p + 1], axis=0)
-        order = ranked[np.argsort(np.where(observed[r, ranked], d, np.inf), kind="stable")]
-        order = order[observed[r, order]]
-        for nb, frames in _neighbour_sets(observed, unseen[refs == r], order,
-                                          RIGID_NEIGHBOURS):
-            A, B = X[r][:, nb], X[frames][:, :, nb]
-            R = _kabsch(np.broadcast_to(A, B.shape), B)
-            out[frames] = (np.einsum("fij,j->fi", R, X[r][:, p] - A.mean(axis=1))
-                           + B.mean(axis=2))
+def _by_size(sel):
+    """[(k, rows, columns)]: the rows of ``sel`` with k selected, and their (rows, k)
+    selected columns in order."""
+    k = sel.sum(axis=1)
+    out = []
+    for n in np.unique(k[k >= 3]):
+        rows = np.flatnonzero(k == n)
+        out.append((n, rows, np.nonzero(sel[rows])[1].reshape(rows.size, n)))
     return out
 
 
-def _template(X, p, nb, both, frames, iters=3):
-    """The point in its neighbours' frame averaged over ``both`` (GPA), carried."""
-    A = X[both][:, :, nb]
-    a = X[both][:, :, p] - A.mean(axis=2)
+def _gather(Xt, nb, f):
+    """(m, 3, k) the shapes of the (m, k) points ``nb`` in the frames ``f`` (m,)."""
+    return np.ascontiguousarray(Xt[nb, f[:, None]].transpose(0, 2, 1))
+
+
+def _nearest_seen(seen, unseen_f, slot):
+    """For each (slot, frame) pair, the slot's seen frame nearest in time (the earlier on
+    a tie); ``seen`` (n, F) bool."""
+    F = seen.shape[1]
+    frame = np.arange(F)
+    prev = np.maximum.accumulate(np.where(seen, frame, -1), axis=1)[slot, unseen_f]
+    nxt = np.minimum.accumulate(np.where(seen, frame, 2 * F)[:, ::-1], axis=1)[:, ::-1]
+    nxt = nxt[slot, unseen_f]
+    use_prev = (prev >= 0) & ((nxt >= F) | (unseen_f - prev <= nxt - unseen_f))
+    return np.where(use_prev, prev, nxt)
+
+
+def _rigid(Xt, O, todo, ranked, slot, f):
+    """(m, 3) the rigid fill of each (point slot, unseen frame) pair (NaN where not
+    made): from the frame r seen nearest in time, the ``RIGID_NEIGHBOURS`` candidates
+    nearest to the point in r among those seen in r and f."""
+    out = np.full((slot.size, 3), np.nan)
+    r = _nearest_seen(O[:, todo].T, f, slot)
+    p, cand = todo[slot], ranked[slot]
+    valid = cand >= 0
+    cand = np.where(valid, cand, 0)
+    d = _dist(Xt[cand, r[:, None]], Xt[p, r][:, None])
+    order = np.argsort(np.where(valid & O[r[:, None], cand], d, np.inf), axis=1,
+                       kind="stable")
+    cand = np.take_along_axis(cand, order, axis=1)
+    avail = (np.take_along_axis(valid, order, axis=1) & O[r[:, None], cand]
+             & O[f[:, None], cand])
+    for _, rows, cols in _by_size(_select(avail, RIGID_NEIGHBOURS)):
+        nb = np.take_along_axis(cand[rows], cols, axis=1)
+        A, B = _gather(Xt, nb, r[rows]), _gather(Xt, nb, f[rows])
+        R = _kabsch(A, B)
+        out[rows] = (np.einsum("nij,nj->ni", R, Xt[p[rows], r[rows]] - A.mean(axis=2))
+                     + B.mean(axis=2))
+    return out
+
+
+def _patterns(O, todo, ranked, slot, f, n):
+    """[(k, item, nb, both_slot, both_f)] for the fills from the first ``n`` candidates
+    seen in the frame: each pair's item (-1: none; one item per point and neighbour set,
+    with at least 2 frames in which the point and its k neighbours are all seen: rows
+    ``both_slot``/``both_f``, sorted by item then frame) and the items' (items, k)
+    neighbours."""
+    cand = ranked[slot]
+    avail = (cand >= 0) & O[f[:, None], np.where(cand >= 0, cand, 0)]
+    out = []
+    for k, rows, cols in _by_size(_select(avail, n)):
+        code = slot[rows] * (1 << _POOL) + (1 << cols).sum(axis=1)
+        codes, inverse = np.unique(code, return_inverse=True)
+        islot, icols = codes >> _POOL, (codes[:, None] >> np.arange(_POOL)) & 1
+        nb = np.take_along_axis(ranked[islot], np.nonzero(icols)[1].reshape(-1, k), axis=1)
+        both = O[:, todo[islot]].T & O.T[nb].all(axis=1)            # (items, F)
+        good = both.sum(axis=1) >= 2
+        item = np.full(slot.size, -1)
+        renum = np.cumsum(good) - 1
+        item[rows] = np.where(good[inverse], renum[inverse], -1)
+        if good.any():
+            bi, bf = np.nonzero(both[good])
+            out.append((k, item, nb[good], islot[good], bi, bf))
+    return out
+
+
+def _segment_mean(V, seg, n):
+    """(n, ...) the mean of the rows of V in each of the n segments (rows sorted by seg)."""
+    start = np.searchsorted(seg, np.arange(n))
+    count = np.diff(np.append(start, seg.size)).reshape((n,) + (1,) * (V.ndim - 1))
+    return np.add.reduceat(V, start, axis=0) / count
+
+
+def _template(Xt, ip, nb, bi, bf, iters=3):
+    """(items, 3, k), (items, 3): each item's neighbours' template and the point in it,
+    averaged over the frames the point was seen with them (GPA)."""
+    n = nb.shape[0]
+    A = _gather(Xt, nb[bi], bf)
+    a = Xt[ip[bi], bf] - A.mean(axis=2)
     A = A - A.mean(axis=2, keepdims=True)
-    Z = A[-1]
+    Z = A[np.searchsorted(bi, np.arange(n), side="right") - 1]
     for _ in range(iters):
-        R = _kabsch(A, np.broadcast_to(Z, A.shape))
-        Z = (R @ A).mean(axis=0)
-    z = np.einsum("nij,nj->ni", R, a).mean(axis=0)
-    B = X[frames][:, :, nb]
-    R = _kabsch(np.broadcast_to(Z, B.shape), B)
-    return np.einsum("fij,j->fi", R, z) + B.mean(axis=2)
+        R = _kabsch(A, Z[bi])
+        Z = _segment_mean(R @ A, bi, n)
+    return Z, _segment_mean(np.einsum("nij,nj->ni", R, a), bi, n)
 
 
-def _affine(X, p, nb, both, frames):
-    """``mean_N + sum_j b_j (x_j - mean_N)``, b fitted (ridge) on ``both``."""
-    A = X[both][:, :, nb]
+def _affine(Xt, ip, nb, bi, bf):
+    """(items, k) each item's affine weights (``mean_N + sum_j b_j (x_j - mean_N)``),
+    fitted (ridge) on the frames the point was seen with its neighbours."""
+    n, k = nb.shape
+    A = _gather(Xt, nb[bi], bf)
     c = A.mean(axis=2, keepdims=True)
-    D = (A - c).reshape(-1, len(nb))
-    y = (X[both][:, :, p] - c[:, :, 0]).reshape(-1)
-    G = D.T @ D
-    b = np.linalg.solve(G + RIDGE * np.trace(G) / len(nb) * np.eye(len(nb)), D.T @ y)
-    B = X[frames][:, :, nb]
-    c = B.mean(axis=2)
-    return c + np.einsum("fik,k->fi", B - c[:, :, None], b)
+    D = A - c
+    y = Xt[ip[bi], bf] - c[:, :, 0]
+    start = np.searchsorted(bi, np.arange(n))
+    G = np.add.reduceat(np.einsum("rik,ril->rkl", D, D), start, axis=0)
+    h = np.add.reduceat(np.einsum("rik,ri->rk", D, y), start, axis=0)
+    reg = RIDGE * np.trace(G, axis1=1, axis2=2) / k
+    return np.linalg.solve(G + reg[:, None, None] * np.eye(k), h[:, :, None])[:, :, 0]
 
 
-def _fills(X, observed, p, ranked):
-    """(3, F, 3) the rigid, template and affine fills of p (NaN where not made)."""
-    unseen = np.flatnonzero(~observed[:, p])
-    out = np.full((3,) + X[:, :, p].shape, np.nan)
-    out[0] = _rigid(X, observed, p, ranked, unseen)
-    for n, k, fill in ((RIGID_NEIGHBOURS, 1, _template), (AFFINE_NEIGHBOURS, 2, _affine)):
-        for nb, frames in _neighbour_sets(observed, unseen, ranked, n):
-            both = np.flatnonzero(observed[:, p] & observed[:, nb].all(axis=1))
-            if both.size >= 2:
-                out[k, frames] = fill(X, p, nb, both, frames)
+def _fills(Xt, O, todo, ranked, slot, f):
+    """(3, m, 3) the rigid, template and affine fills of each (point slot, unseen frame)
+    pair (NaN where not made)."""
+    out = np.full((3, slot.size, 3), np.nan)
+    out[0] = _rigid(Xt, O, todo, ranked, slot, f)
+    for n, j in ((RIGID_NEIGHBOURS, 1), (AFFINE_NEIGHBOURS, 2)):
+        for k, item, nb, islot, bi, bf in _patterns(O, todo, ranked, slot, f, n):
+            rows = np.flatnonzero(item >= 0)
+            it = item[rows]
+            B = _gather(Xt, nb[it], f[rows])
+            c = B.mean(axis=2)
+            if j == 1:
+                Z, z = _template(Xt, todo[islot], nb, bi, bf)
+                out[j, rows] = np.einsum("nij,nj->ni", _kabsch(Z[it], B), z[it]) + c
+            else:
+                b = _affine(Xt, todo[islot], nb, bi, bf)
+                out[j, rows] = c + np.einsum("nik,nk->ni", B - c[:, :, None], b[it])
     return out
-
-
 def fill_unseen(shapes, observed, points=None):
     """The shapes with every point's unseen frames filled from its neighbours.
 
@@ -188,14 +348,19 @@ def fill_unseen(shapes, observed, points=None):
     todo = ~observed.all(axis=0) & observed.any(axis=0)
     if points is not None:
         todo &= np.asarray(points, bool)
-    for p in np.flatnonzero(todo):
-        S = _fills(X, observed, p, _candidates(X, observed, p))
-        made = np.isfinite(S).all(axis=(0, 2))
-        if not made.any():
-            continue
-        S = S[:, made]
-        frames = np.flatnonzero(made)
-        filled[frames, :, p] = np.median(np.concatenate([S, X[frames, :, p][None]]), axis=0)
-        var = np.sum(S.var(axis=0), axis=1)
-        spread[p] = np.sqrt(np.mean(var)) / radius if radius > 0 else 0.0
+    todo = np.flatnonzero(todo)
+    if todo.size == 0:
+        return filled, spread
+    Xt = np.ascontiguousarray(X.transpose(2, 0, 1))                # (P, F, 3)
+    ranked = _candidates(Xt, observed, todo)
+    slot, f = np.nonzero(~observed[:, todo].T)                     # (point, unseen frame)
+    S = _fills(Xt, observed, todo, ranked, slot, f)
+    made = np.isfinite(S).all(axis=(0, 2))
+    S, slot, f = S[:, made], slot[made], f[made]
+    p = todo[slot]
+    filled[f, :, p] = np.median(np.concatenate([S, Xt[p, f][None]]), axis=0)
+    var = np.sum(S.var(axis=0), axis=1)
+    n = np.bincount(slot, minlength=todo.size)
+    mean = np.bincount(slot, var, minlength=todo.size) / np.maximum(n, 1)
+    spread[todo[n > 0]] = np.sqrt(mean[n > 0]) / radius if radius > 0 else 0.0
     return filled, spread

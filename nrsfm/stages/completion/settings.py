@@ -11,9 +11,9 @@ MISSING = ("complete", "error")
 #: How W is completed (``MeasurementSettings.completion``); the first is the default.
 COMPLETIONS = ("auto", "factorisation", "soft_impute")
 #: How the shapes of the points not seen are filled (``MeasurementSettings.fill``); the
-#: first is the default (``neighbours`` fills better on lost tracks but is a loop over the
-#: points: 3 - 11 s on the synthetic videos against 0.1 s for the shape stage,
-#: docs/missing_data_scale.md, issue 24)
+#: first is the default (``neighbours`` fills better on lost tracks but costs 0.7 - 2 s on
+#: the synthetic videos against 0.1 s for the shape stage, and doubles reconstruct's time
+#: on 20,000 x 100 dense tracks: docs/missing_data_scale.md, issue 24)
 FILLS = ("model", "neighbours")
 
 
