@@ -47,17 +47,23 @@ def run_one(seq, W, path):
     return secs
 
 
-def main(argv=None):
-    import data_tools
-    from nrsfm.experiments.tasks import load_sequence
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def study_arguments(description, argv=None):
+    """The options both lost-fill scripts take: the cache folder, the data folder, the
+    sequences, patterns and seeds."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--cache", required=True)
     ap.add_argument("--data", default=None)
     ap.add_argument("--sequences", nargs="+", default=SEQUENCES)
     ap.add_argument("--patterns", nargs="+", default=PATTERNS)
     ap.add_argument("--seeds", nargs="+", type=int, default=SEEDS)
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def main(argv=None):
+    import data_tools
+    from nrsfm.experiments.tasks import load_sequence
+
+    args = study_arguments(__doc__.splitlines()[0], argv)
     Path(args.cache).mkdir(parents=True, exist_ok=True)
     for name in args.sequences:
         seq = load_sequence(name, args.data)

@@ -25,7 +25,6 @@ the frames since the point was last seen; their Spearman correlation with the fi
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -33,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from lost_fill_cache import PATTERNS, SEEDS, SEQUENCES, cache_path  # noqa: E402
+from lost_fill_cache import cache_path, study_arguments  # noqa: E402
 from lost_fill_methods import fill_point  # noqa: E402
 
 
@@ -103,13 +102,7 @@ def main(argv=None):
     from nrsfm.experiments.tasks import load_sequence
     from nrsfm.metrics import e3d
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cache", required=True)
-    ap.add_argument("--data", default=None)
-    ap.add_argument("--sequences", nargs="+", default=SEQUENCES)
-    ap.add_argument("--patterns", nargs="+", default=PATTERNS)
-    ap.add_argument("--seeds", nargs="+", type=int, default=SEEDS)
-    args = ap.parse_args(argv)
+    args = study_arguments(__doc__.splitlines()[0], argv)
     print("| sequence | pattern | seed | candidate | fill lost | max | ratio | seen ratio "
           "| rho(resid) | rho(gap) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
