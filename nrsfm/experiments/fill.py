@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import align_similarity, centre_points
+from ..geometry import align_similarity, centre_points, procrustes_so3
 from ..validation import check_integer, check_shapes
 
 __all__ = ["e3d_seen", "lost_point_means", "point_errors", "rigid_neighbour_fill"]
@@ -106,9 +106,7 @@ def _rigid_carry(A, B, x):
     ca, cb = A.mean(axis=1, keepdims=True), B.mean(axis=1, keepdims=True)
     if A.shape[1] < 3:
         return x + (cb - ca)[:, 0]
-    U, _, Vt = np.linalg.svd((B - cb) @ (A - ca).T)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return (U @ D @ Vt) @ (x - ca[:, 0]) + cb[:, 0]
+    return procrustes_so3((B - cb) @ (A - ca).T) @ (x - ca[:, 0]) + cb[:, 0]
 
 
 def rigid_neighbour_fill(shapes, observed, k=4):

@@ -34,6 +34,7 @@ import itertools
 
 import numpy as np
 
+from ..geometry import procrustes_so3
 from ..validation import check_shapes
 
 __all__ = ["AFFINE_NEIGHBOURS", "RIDGE", "RIGID_NEIGHBOURS", "fill_unseen"]
@@ -48,13 +49,11 @@ _CHUNK = 1 << 20    # (pair, frame) distances computed at once
 
 
 def _kabsch(A, B):
-    """(n, 3, 3) rotations (no reflection) with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)."""
+    """(n, 3, 3) rotations (no reflection) with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)
+    (:func:`nrsfm.geometry.procrustes_so3` of the centred cross-covariance)."""
     A = A - A.mean(axis=2, keepdims=True)
     B = B - B.mean(axis=2, keepdims=True)
-    U, _, Vt = np.linalg.svd(B @ A.transpose(0, 2, 1))
-    U = U.copy()
-    U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
-    return U @ Vt
+    return procrustes_so3(B @ A.transpose(0, 2, 1))
 
 
 def _dist(a, b):
