@@ -91,14 +91,9 @@ def _log_filled(rec, rr, c, radius):
     """The points not observed in each frame, where the input had missing data."""
     if c.filled is None or not c.filled.any():
         return
-    F, P = c.filled.shape
-    pts = [c.shapes_est[f][c.filled[f]] for f in range(F)]
-    gain = np.broadcast_to(c.fill_gain, (F, P))[c.filled]
-    rec.send_columns("/world/shapes/filled", indexes=[rr.TimeColumn("frame", sequence=c.frames)],
-                     columns=rr.Points3D.columns(positions=np.concatenate(pts),
-                                                 colors=fill_colors(gain))
-                     .partition([len(p) for p in pts]))
-    rec.log("/world/shapes/filled", rr.Points3D.from_fields(radii=[radius]), static=True)
+    gain = np.broadcast_to(c.fill_gain, c.filled.shape)[c.filled]
+    rl.send_masked_points(rec, rr, "/world/shapes/filled", c.shapes_est, c.filled, c.frames,
+                          fill_colors(gain), radius)
 
 
 def _log_shapes(rec, rr, c, r_pt, r_ln):

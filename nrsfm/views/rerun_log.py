@@ -33,6 +33,15 @@ def send_points(rec, rr, path, pts, frames, color=None, radius=None):
         rec.log(path, rr.Points3D.from_fields(colors=[color], radii=[radius]), static=True)
 
 
+def send_masked_points(rec, rr, path, pts, mask, frames, colors, radius):
+    """The points of (F, P, 3) ``pts`` where the (F, P) ``mask`` is True, per frame, with
+    one colour each (``colors``: (mask.sum(), 4), in frame order); radius logged once."""
+    rec.send_columns(path, indexes=_frame_index(rr, frames),
+                     columns=rr.Points3D.columns(positions=pts[mask], colors=colors)
+                     .partition(mask.sum(axis=1)))
+    rec.log(path, rr.Points3D.from_fields(radii=[radius]), static=True)
+
+
 def send_points_2d(rec, rr, path, pts, frames):
     """(F, P, 2) image points over ``frames``."""
     F, P = pts.shape[:2]
