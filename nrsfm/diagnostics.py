@@ -44,10 +44,6 @@ Signals (name: meaning; flagged when)
   flagged above ``DEPTH_AMPLIFICATION_MAX`` when W has more than rounding beyond its
   rank-3K part (``DEPTH_NOISE_MIN``), or when infinite (the camera motion does not
   determine the depth of the deformation: a limit of the data, not a failed search).
-* ``depth_sensitivity``: how much the shapes move per unit of rotation change between
-  the stage's averaged rotations and its best single triplet's (both are solved by the
-  shape stage, :func:`nrsfm.metrics.depth_sensitivity`); recorded, not flagged (it
-  overlaps between good and bad runs under noise: ``docs/rotation_stage.md``, section 9).
 * ``triplet_cost_ratio`` above ``COST_RATIO_MAX`` is a flag only when other random starts
   reach a lower cost (a failed search, :func:`nrsfm.stages.rotations.subspace.lower_minimum`);
   otherwise a note (the rank-3K model does not fit W exactly, as with real shapes).
@@ -62,7 +58,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .noise import noise_from_singular_values
 from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum
 from .warnings_catalog import UNRELIABLE, text
 
@@ -112,8 +107,7 @@ THRESHOLDS = dict(camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",numerical_rank=
                   smoothness_sign_fraction=f"> {SIGN_FRACTION_MAX}",
                   triplet_hits="< 2", looks_transposed="True",
                   depth_amplification=f"> {DEPTH_AMPLIFICATION_MAX} with noise_level > "
-                                      f"{DEPTH_NOISE_MIN:g}",
-                  depth_sensitivity="- (recorded)")
+                                      f"{DEPTH_NOISE_MIN:g}")
 
 
 class NRSfMWarning(UserWarning):
@@ -208,8 +202,7 @@ def _dai_cost_per_frame(Wc, K, seed=0):
     return float(cor.costs[0]) / (Wc.shape[0] // 2)
 
 
-def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0,
-             depth_amplification=None):
+def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplification=None):
     """Measure the quality signals of a run and flag those beyond their thresholds.
 
     Parameters
@@ -217,10 +210,9 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0,
     W : (2F, P) ndarray
         Row-centred measurements (any scale).
     K : int
-    singular_values : (min(2F, P),) ndarray
-        All singular values of the (normalised) W the factorisation used.
-    M_hat : (2F, 3K) ndarray, optional
-        The motion factor (needed for the triplet cost prediction).
+    factorization : nrsfm.stages.measurement.Factorization
+        The rank-3K factorisation of W (its singular values, noise level and motion
+        factor M_hat).
     rotation_stage : RotationResult, optional
         None when the rotations were given.
     seed : int
@@ -238,7 +230,8 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0,
     twoF, P = W.shape
     F = twoF // 2
     r = 3 * K
-    s = np.asarray(singular_values, float)
+    s = np.asarray(factorization.singular_values, float)
+    M_hat = factorization.M_hat
     sig, flags = {}, []
 
     rank = numerical_rank(s)
@@ -256,13 +249,13 @@ def diagnose(W, K, singular_values, M_hat=None, rotation_stage=None, seed=0,
     sig["condition"] = cond
     if rank >= r and cond > CONDITION_MAX:
         flags.append(text("W-ill-conditioned", cond=cond, cond_max=CONDITION_MAX))
-    sigma = noise_from_singular_values(s, W.shape, K)
+    sigma = factorization.noise_level
     rms = np.sqrt(np.sum(s ** 2) / (twoF * P))
     sig["noise_level"] = sigma / rms if rms > 0 else 0.0     # relative to W's RMS entry
 
     if rank >= r:
         _depth_signal(depth_amplification, sig, flags)
-    if rotation_stage is not None and M_hat is not None:
+    if rotation_stage is not None:
         _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, rank >= r, sig, flags,
                           notes)
     if rank_msg is not None:
@@ -345,9 +338,6 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
     sig["camera_spread_deg"] = spread
     if spread < CAMERA_SPREAD_MIN_DEG:
         flags.append(text("W-static-camera", spread=spread, spread_min=CAMERA_SPREAD_MIN_DEG))
-    depth = (info.get("shape_selection") or {}).get("depth")
-    if depth is not None:
-        sig["depth_sensitivity"] = depth["ratio"]
     if sfrac > SIGN_FRACTION_MAX:
         # cameras that jump by more than 90 degrees leave the depth sign of a frame to the
         # smoothness rule, which cannot decide it; alone that is the orthographic mirror

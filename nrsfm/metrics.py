@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import align_similarity, centre_points, procrustes_orthogonal
-from .validation import check_rotations, check_shapes, power_of_two_scale
+from .stages.measurement import power_of_two_scale
+from .validation import check_rotations, check_shapes
 
 __all__ = ["camera_alignment", "depth_amplification", "depth_sensitivity", "e3d", "e3d_akhter",
            "rotation_error"]

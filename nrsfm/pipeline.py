@@ -23,10 +23,10 @@ from .metrics import depth_amplification
 from .settings import METHODS, Settings, method_settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import fill_unseen
-from .stages.measurement import Factorization, measure
+from .stages.measurement import Factorization, measure, power_of_two_scale
 from .stages.selection import shape_for_rotations
 from .stages.shape import ShapeResult
-from .validation import blas_threads, check_problem, power_of_two_scale
+from .validation import blas_threads, check_problem
 
 __all__ = ["METHODS", "Reconstruction", "reconstruct"]
 
@@ -329,8 +329,7 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
                                                          settings.shape, say)
     amp = (depth_amplification(rotations, shape_stage.shapes, K)
            if settings.shape.solver.estimates_depth else None)
-    diagnostics = diagnose(meas.Wn, K, fact.singular_values, fact.M_hat, rotation_stage, seed,
-                           depth_amplification=amp)
+    diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
     if diagnostics.flags:
         warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)

@@ -168,21 +168,6 @@ def check_shapes(X, name="X", n_frames=None, n_points=None):
     return A
 
 
-def power_of_two_scale(A):
-    """``2**e`` with ``2**e <= max|A| < 2**(e+1)``, or 1 when ``A`` is zero or empty.
-
-    Dividing a finite array by it is exact (only exponents change), which brings any finite
-    input to ``max|A|`` in ``[1, 2)`` before norms, products or SVDs that would overflow
-    (``|A| ~ 1e153``) or underflow (``|A| ~ 1e-165``).
-    """
-    A = np.asarray(A, dtype=float)
-    m = float(np.max(np.abs(A))) if A.size else 0.0
-    if m == 0.0 or not np.isfinite(m):
-        return 1.0
-    _, e = np.frexp(m)                  # m = f 2**e with 0.5 <= f < 1
-    return float(np.ldexp(1.0, int(e) - 1))
-
-
 @contextmanager
 def blas_threads(n=1):
     """Limit BLAS/OpenMP threads inside the block (small matrices run fastest on one)."""

@@ -114,8 +114,8 @@ def test_bad_triplet_is_flagged():
     G = np.random.default_rng(0).standard_normal((6, 3))
     bad.info["corrective_costs"] = np.array([nrsfm.stages.corrective.triplet_cost(G, f.M_hat)])
     bad.G = G[None]
-    d_good = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, good)
-    d_bad = D.diagnose(seq.W, 2, f.singular_values, f.M_hat, bad)
+    d_good = D.diagnose(seq.W, 2, f, good)
+    d_bad = D.diagnose(seq.W, 2, f, bad)
     assert d_good.signals["triplet_cost_ratio"] < D.COST_RATIO_MAX
     assert d_bad.signals["triplet_cost_ratio"] > D.COST_RATIO_MAX
     assert any(flag.startswith("W-triplet-bad-minimum: ") for flag in d_bad.flags)

@@ -16,9 +16,9 @@ ROOT = Path(__file__).resolve().parents[1]
 #: that names it
 LAYERS = [
     ("shared", ["nrsfm.geometry", "nrsfm.validation", "nrsfm.io", "nrsfm.paths",
-                "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.metrics",
-                "nrsfm.warnings_catalog"]),
+                "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.warnings_catalog"]),
     ("stages", ["nrsfm.stages"]),
+    ("metrics", ["nrsfm.metrics"]),
     ("diagnostics", ["nrsfm.diagnostics"]),
     ("settings", ["nrsfm.settings"]),
     ("pipeline", ["nrsfm.pipeline"]),

@@ -99,7 +99,7 @@ def test_pseudo_inverse_with_given_rotations_result_object(seq):
 
 
 def test_power_of_two_scale_is_exact():
-    from nrsfm.validation import power_of_two_scale
+    from nrsfm.stages.measurement import power_of_two_scale
 
     rng = np.random.default_rng(0)
     for c in (1e153, 1e-165, 3.0, 2.0 ** -1060, 1e300):

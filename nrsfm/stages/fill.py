@@ -308,6 +308,8 @@ def _fills(Xt, O, todo, ranked, slot, f):
                 b = _affine(Xt, todo[islot], nb, bi, bf)
                 out[j, rows] = c + np.einsum("nik,nk->ni", B - c[:, :, None], b[it])
     return out
+
+
 def fill_unseen(shapes, observed, points=None):
     """The shapes with every point's unseen frames filled from its neighbours.
 

@@ -22,15 +22,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import power_of_two_scale
+from ..noise import noise_from_singular_values
 
 __all__ = ["Factorization", "Measurements", "centre_rows", "factorize", "left_singular", "measure",
-           "working_scale"]
+           "power_of_two_scale", "working_scale"]
 
 #: Frobenius norm of the W the stages work on (see the module docstring)
 WORKING_FROBENIUS = 170.0
 #: W is "wide" (dense tracks) when P > WIDE_RATIO * 2F: its SVD then goes through W W'
 WIDE_RATIO = 4
+
+
+def power_of_two_scale(A):
+    """``2**e`` with ``2**e <= max|A| < 2**(e+1)``, or 1 when ``A`` is zero or empty.
+
+    Dividing a finite array by it is exact (only exponents change), which brings any finite
+    input to ``max|A|`` in ``[1, 2)`` before norms, products or SVDs that would overflow
+    (``|A| ~ 1e153``) or underflow (``|A| ~ 1e-165``).
+    """
+    A = np.asarray(A, dtype=float)
+    m = float(np.max(np.abs(A))) if A.size else 0.0
+    if m == 0.0 or not np.isfinite(m):
+        return 1.0
+    _, e = np.frexp(m)                  # m = f 2**e with 0.5 <= f < 1
+    return float(np.ldexp(1.0, int(e) - 1))
 
 
 def centre_rows(W):
@@ -53,12 +68,17 @@ class Factorization:
         All singular values of W, for inspection of the rank.
     residual : float
         ``||W - M_hat B_hat||_F / ||W||_F``.
+    noise_level : float
+        W's noise level beyond rank 3K, in W's units
+        (:func:`nrsfm.noise.noise_from_singular_values`): the one estimate the diagnostics
+        read.
     """
 
     M_hat: np.ndarray
     B_hat: np.ndarray
     singular_values: np.ndarray
     residual: float
+    noise_level: float
 
 
 def left_singular(W):
@@ -104,7 +124,8 @@ def factorize(W, K):
     B_hat = root[:, None] * Vt_r
     nW = np.linalg.norm(W)
     residual = float(np.linalg.norm(W - M_hat @ B_hat) / nW) if nW > 0 else 0.0
-    return Factorization(M_hat=M_hat, B_hat=B_hat, singular_values=s, residual=residual)
+    return Factorization(M_hat=M_hat, B_hat=B_hat, singular_values=s, residual=residual,
+                         noise_level=noise_from_singular_values(s, W.shape, K))
 
 
 def working_scale(W):

@@ -4,12 +4,13 @@ The shape stage is solved once, for the rotation stage's rotations, the first of
 candidates (:meth:`~nrsfm.stages.rotations.RotationResult.candidates`: the stage's
 rotations and its best single triplet's). ``ShapeSettings(select_rotations=True)`` instead
 solves every candidate in full and keeps the one with the lowest shape objective
-(:attr:`~nrsfm.stages.shape.ShapeResult.prior_objective`), and records the depth
-sensitivity between the first two (:func:`nrsfm.metrics.depth_sensitivity`, how much the
-shapes follow the rotations); measured in ``docs/shape_stage.md``, the choice is no better
-on average and costs a second full solve. (Until issue 23 the second candidate was also
-solved by default, warm-started, only to read the depth sensitivity for the diagnostics; the
-diagnostics now read :func:`nrsfm.metrics.depth_amplification`, which needs no solve.)
+(:attr:`~nrsfm.stages.shape.ShapeResult.prior_objective`); measured in
+``docs/shape_stage.md``, the choice is no better on average and costs a second full solve.
+(Until issue 23 the second candidate was also solved by default, warm-started, only to read
+the depth sensitivity between the two, :func:`nrsfm.metrics.depth_sensitivity`, for the
+diagnostics; they now read :func:`nrsfm.metrics.depth_amplification`, which needs no
+solve, and the sensitivity, which overlapped between good and bad runs, is no longer
+recorded.)
 
 The one home of the choice between rotation candidates: it uses the rotation stage's
 result and the shape stage, and neither of them uses it.
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..metrics import depth_sensitivity
 from .shape import solve_shape
 
 __all__ = ["shape_for_rotations"]
@@ -31,10 +31,9 @@ def shape_for_rotations(W, rotations, K, rotation_stage, settings, say):
 
     Without ``settings.select_rotations`` (the default) one solve, for the rotation stage's
     rotations. With it every candidate is solved in full and the one with the lowest shape
-    objective kept (the first on ties, and the first when a result has no objective), with
-    the depth sensitivity between the first two. Recorded in
-    ``rotation_stage.info["shape_selection"]`` (candidates, objectives of the candidates
-    solved, the one chosen, ``depth``: the depth sensitivity or None).
+    objective kept (the first on ties, and the first when a result has no objective).
+    Recorded in ``rotation_stage.info["shape_selection"]`` (candidates, objectives of the
+    candidates solved, the one chosen).
 
     Returns
     -------
@@ -54,8 +53,6 @@ def shape_for_rotations(W, rotations, K, rotation_stage, settings, say):
         pick = int(np.argmin(objectives))          # first minimum on ties
         say(f"rotations for the shape: {names[pick]} (objectives " + ", ".join(
             f"{n} {v:.6g}" for n, v in zip(names, objectives)) + ")")
-    depth = None if len(results) < 2 else depth_sensitivity(
-        cands[0][1], cands[1][1], results[0].shapes, results[1].shapes)
-    rotation_stage.info["shape_selection"] = dict(
-        candidates=names, objectives=objectives, chosen=names[pick], depth=depth)
+    rotation_stage.info["shape_selection"] = dict(candidates=names, objectives=objectives,
+                                                  chosen=names[pick])
     return cands[pick][1], results[pick]
