@@ -5,6 +5,7 @@ gives. Used by :mod:`nrsfm.stages.corrective`.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -164,17 +165,33 @@ def _penalized_cvxpy(A, C, a, lam, F, n, iu):
     return Q, info
 
 
+#: over-relaxation of the ADMM's z-update (Boyd et al. 2011, sec. 3.4.3: 1.5 - 1.8 often
+#: converges faster; measured in docs/rotation_stage.md section 10)
+OVER_RELAXATION = 1.5
+#: the ADMM's first step size, times the trace weight ``a`` (docs/rotation_stage.md
+#: section 10)
+RHO_START = 1.0 / 3.0
+
+
+def _frobenius(A):
+    """``||A||_F`` (as ``numpy.linalg.norm``, without its dispatch: 3 per ADMM iteration)."""
+    a = A.ravel()
+    return math.sqrt(a @ a)
+
+
 def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
     """The relaxation by ADMM: the constraints' Gram matrix up front (cached), the Cholesky
     factor of the x-update's system once per value of rho, a 3K x 3K eigendecomposition
     per iteration, residual balancing."""
     AtA = _cached(cache, "gram", lambda: At.T @ At)      # independent of the penalty
-    rho = a     # the trace's weight, the dual's scale: the residual balancing ends within a
-    # factor 4 of it on the 8 MoCap sequences (from rho = 1 it took 7-10 halvings)
+    rho = a * RHO_START     # a: the trace's weight, the dual's scale (from rho = 1 the
+    # residual balancing took 7-10 halvings; from rho = a it ended within a factor 4 of a)
     Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
     U = np.zeros((n, n))
     Z, U, rho = _warm_start(cache, Z, U, rho)
-    upper, lower = iu[0] * n + iu[1], iu[1] * n + iu[0]    # vech entries in Q.ravel()
+    upper = iu[0] * n + iu[1]                          # vech entries in Q.ravel()
+    sym = np.empty(n * n, dtype=np.intp)               # Q.ravel() = vech(Q)[sym]
+    sym[upper] = sym[iu[1] * n + iu[0]] = np.arange(upper.size)
     status, it, n_fact = "max_iter", 0, 0
     Hc = None
     for it in range(1, max_iter + 1):
@@ -187,16 +204,14 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
         y = _solve(L, rhs)
         mu = (c @ y - 2.0 * F) / cHc
         v = (y - mu * Hc) / dw
-        Qm = np.empty(n * n)
-        Qm[upper], Qm[lower] = v, v                   # the symmetric matrix of vech v
-        Qm = Qm.reshape(n, n)
-        w, E = np.linalg.eigh(Qm + U)
+        Qm = v[sym].reshape(n, n)                      # the symmetric matrix of vech v
+        Qh = OVER_RELAXATION * Qm + (1.0 - OVER_RELAXATION) * Z     # over-relaxed x
+        w, E = np.linalg.eigh(Qh + U)
         Z_old = Z
         Z = (E * np.clip(w, 0, None)) @ E.T
         r = Qm - Z
-        U += r
-        rn, sn = np.linalg.norm(r), np.linalg.norm(Z - Z_old)
-        scale = max(np.linalg.norm(Z), 1e-300)
+        U += Qh - Z
+        rn, sn, scale = _frobenius(r), _frobenius(Z - Z_old), max(_frobenius(Z), 1e-300)
         if rn < tol * scale and sn < tol * scale:
             status = "converged"
             break
