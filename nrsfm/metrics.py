@@ -227,8 +227,9 @@ def depth_sensitivity(R_a, R_b, X_a, X_b):
     follow the rotations (the same shapes re-projected by a camera turning 62 degrees:
     pickup 0.062 / 0.030 = 2.1, stretch 0.36 / 0.072 = 5.0; e3d 0.18 and 0.25 even with
     the exact rotations). Measured with the family-combined rotations as ``R_a`` and the
-    best single triplet's as ``R_b`` (:mod:`nrsfm.stages.selection`, which records it for
-    :mod:`nrsfm.diagnostics`).
+    best single triplet's as ``R_b``. The pipeline no longer records it (it overlapped
+    between good and bad runs under noise; the diagnostics read
+    :func:`depth_amplification`).
 
     Parameters
     ----------

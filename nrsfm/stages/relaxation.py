@@ -182,10 +182,10 @@ def _frobenius(A):
 def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
     """The relaxation by ADMM: the constraints' Gram matrix up front (cached), the Cholesky
     factor of the x-update's system once per value of rho, a 3K x 3K eigendecomposition
-    per iteration, residual balancing."""
+    per iteration (of the over-relaxed x, ``OVER_RELAXATION``), residual balancing from
+    ``rho = RHO_START a``."""
     AtA = _cached(cache, "gram", lambda: At.T @ At)      # independent of the penalty
-    rho = a * RHO_START     # a: the trace's weight, the dual's scale (from rho = 1 the
-    # residual balancing took 7-10 halvings; from rho = a it ended within a factor 4 of a)
+    rho = a * RHO_START     # a: the trace's weight, the dual's scale
     Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
     U = np.zeros((n, n))
     Z, U, rho = _warm_start(cache, Z, U, rho)
