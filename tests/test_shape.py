@@ -423,3 +423,32 @@ def test_admm_masked_data_term_fills_unobserved_points():
                         ShapeSettings(prior=None if name in ("closed_form", "pseudo_inverse")
                                       else "organic", solver=solver_settings(name)),
                         observed=observed)
+
+
+def test_c_step_is_the_minimiser_and_the_frame_factors_invert():
+    """The C step (from viewing directions and X_init#, without the 2F x 3r matrix) zeroes
+    dE/dC; the per-frame factors satisfy L L' = H and L^-1 L = I, by LAPACK's batch and by
+    the floored loop (a singular H_f), which agree where both apply."""
+    from nrsfm.stages.shape import factors
+    rng = np.random.default_rng(3)
+    seq = data_tools.make_synthetic(F=9, P=6, K=2, motion="random", seed=2)
+    F, P, r = 9, 6, 4
+    Rf = seq.rotations[:, :2]
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(F, 2, P)).reshape(F, 3 * P)
+    reg = np.array([0.0, 0.2, 0.5, 0.9])
+    B = rng.standard_normal((F, r))
+    C = factors.c_step(B, Rf, seq.W, reg)
+    gC = factors.objective(B, C, Pi, Xi, float(np.sum(seq.W ** 2)), reg)[3]
+    assert np.linalg.norm(gC) < 1e-12 * np.linalg.norm(C)
+    A = (B[:, None, :, None] * Rf[:, :, None, :]).reshape(2 * F, 3 * r)   # rows B_f kron R_f
+    c_ref = np.linalg.solve(A.T @ A + np.diag(np.repeat(reg, 3)), A.T @ seq.W)
+    assert np.allclose(C, c_ref.reshape(r, 3 * P).T, rtol=1e-10, atol=1e-12)
+    H = factors.frame_hessians(C, Pi, reg)
+    L, Linv = factors.frame_preconditioner(C, Pi, reg)
+    assert np.allclose(L @ L.transpose(0, 2, 1), H, rtol=1e-10, atol=1e-12)
+    assert np.allclose(Linv @ L, np.eye(r), atol=1e-10)
+    assert np.allclose(factors._cholesky(H), L, atol=1e-10)     # L: H plus its 1e-12 jitter
+    H[0] = np.outer(H[0, 0], H[0, 0])                   # rank one: LAPACK fails, the loop floors
+    L2 = factors._factor(H)
+    assert np.all(np.isfinite(L2)) and np.allclose(L2[1:], L[1:], atol=1e-10)

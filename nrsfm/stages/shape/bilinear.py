@@ -65,8 +65,8 @@ from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
 from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
-from .factors import (c_step, minimise, objective, project, rank_certificate,
-                      relative_gradient)
+from .factors import (c_step, c_step_xi, minimise, objective, project, rank_certificate,
+                      relative_gradient, viewing_directions)
 from .common import ShapeResult, check_shape_inputs
 
 __all__ = ["BilinearSettings", "ClosedFormSettings", "GAP_MAX", "bilinear_weights",
@@ -256,10 +256,11 @@ class _Objective:
     def __init__(self, Rf, Wn, Xi, reg, hist):
         self.Rf, self.Wn, self.Xi, self.reg = Rf, Wn, Xi, reg
         self.Pi = Rf.transpose(0, 2, 1) @ Rf
+        self.n = viewing_directions(Rf)
         self.hist = hist
 
     def c_step(self, B):
-        return c_step(B, self.Rf, self.Wn, self.reg[:B.shape[1]])
+        return c_step_xi(B, self.n, self.Xi, self.reg[:B.shape[1]])
 
     def values(self, B, C):                                          # ||Wn||_F^2 = 1
         return objective(B, C, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])

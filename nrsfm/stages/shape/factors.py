@@ -24,7 +24,7 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-__all__ = ["SEGMENT", "c_step", "frame_hessians", "frame_preconditioner", "minimise", "project",
+__all__ = ["SEGMENT", "c_step", "c_step_xi", "viewing_directions", "frame_hessians", "frame_preconditioner", "minimise", "project",
            "objective", "rank_certificate", "relative_gradient", "svd_align"]
 
 #: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
@@ -39,7 +39,7 @@ def c_step(B, Rf, W, reg):
     For point p with unknowns ``c_p = [C_i(:, p)]_i`` (3r), the data term is
     ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``: with ``A`` the (2F x 3r) matrix of rows
     ``B_f kron R_f``, the normal matrix is ``A'A + diag(reg kron 1_3)`` and the right-hand
-    sides ``A'W``.
+    sides ``A'W``; :func:`c_step_xi` computes both without forming A.
 
     Parameters
     ----------
@@ -55,18 +55,38 @@ def c_step(B, Rf, W, reg):
     -------
     C : (3P, r) ndarray
     """
+    F = B.shape[0]
+    Xi = np.matmul(Rf.transpose(0, 2, 1), W.reshape(F, 2, -1)).reshape(F, -1)
+    return c_step_xi(B, viewing_directions(Rf), Xi, reg)
+
+
+def viewing_directions(Rf):
+    """``n_f = r_f1 x r_f2`` (F, 3), so that ``R_f'R_f = I - n_f n_f'``."""
+    return np.cross(Rf[:, 0], Rf[:, 1])
+
+
+def c_step_xi(B, n, Xi, reg):
+    """:func:`c_step` from the viewing directions n (F, 3) and X_init# (F, 3P).
+
+    ``A'A = sum_f (B_f'B_f) kron (I - n_f n_f') = (B'B) kron I_3 - D'D`` with D the (F x 3r)
+    matrix of rows ``B_f kron n_f``, and ``A'W = B' X_init#`` (as (3r, P)): half the work of
+    forming A (2F x 3r) and its products. The unknowns are ordered (coordinate, column)
+    here, so that the per-frame products run over r, not over 3."""
     F, r = B.shape
-    P = W.shape[1]
-    A = (B[:, None, :, None] * Rf[:, :, None, :]).reshape(2 * F, 3 * r)
-    N = A.T @ A
-    N[np.diag_indices(3 * r)] += np.repeat(reg, 3)
-    rhs = A.T @ W
+    P = Xi.shape[1] // 3
+    D = (n[:, :, None] * B[:, None, :]).reshape(F, 3 * r)      # columns (a, i)
+    N = -(D.T @ D)
+    BB = B.T @ B
+    for a in range(3):
+        N[a * r:(a + 1) * r, a * r:(a + 1) * r] += BB
+    N[np.diag_indices(3 * r)] += np.tile(reg, 3)
+    rhs = (B.T @ Xi).reshape(r, 3, P).transpose(1, 0, 2).reshape(3 * r, P)
     try:
         c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
                                    check_finite=False)
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
         c = np.linalg.lstsq(N, rhs, rcond=None)[0]
-    return c.reshape(r, 3 * P).T
+    return c.reshape(3, r, P).transpose(0, 2, 1).reshape(3 * P, r)
 
 
 def project(Pi, Xs):
@@ -148,17 +168,33 @@ def _cholesky(H):
 
 def _lower_inverse(L):
     """Inverses of a batch of lower-triangular matrices (n, r, r), by forward substitution
-    vectorised over n."""
+    with the batch as the innermost axis (every step is a contiguous multiply-add over n;
+    drink, 1102 matrices of 21 x 21: 2 ms, against 6 - 9 ms with the batch outermost)."""
     n, r, _ = L.shape
-    X = np.zeros_like(L)
-    d = 1.0 / np.diagonal(L, axis1=1, axis2=2)
+    A = np.ascontiguousarray(L.transpose(1, 2, 0))                  # (r, r, n)
+    X = np.zeros_like(A)
+    d = 1.0 / np.diagonal(L, axis1=1, axis2=2).T                    # (r, n)
     for j in range(r):
-        row = np.zeros((n, r))
         if j:
-            row -= np.matmul(L[:, j:j + 1, :j], X[:, :j, :])[:, 0, :]
-        row[:, j] += 1.0
-        X[:, j, :] = row * d[:, j, None]
-    return X
+            X[j, :j] = -np.einsum("kn,kcn->cn", A[j, :j], X[:j, :j]) * d[j]
+        X[j, j] = d[j]
+    return np.ascontiguousarray(X.transpose(2, 0, 1))
+
+
+def _factor(H):
+    """Lower Cholesky factors of the SPD batch H (n, r, r): LAPACK's, batched by numpy, or
+    :func:`_cholesky` (with its pivot floor) where a pivot of LAPACK's falls below that
+    floor or LAPACK fails."""
+    r = H.shape[1]
+    try:
+        L = np.linalg.cholesky(H)
+    except np.linalg.LinAlgError:
+        return _cholesky(H)
+    tr = np.trace(H, axis1=1, axis2=2) / r
+    floor = 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
+    if not np.all(np.diagonal(L, axis1=1, axis2=2) ** 2 >= floor[:, None]):
+        return _cholesky(H)
+    return L
 
 
 def frame_preconditioner(C, Pi, reg):
@@ -168,7 +204,7 @@ def frame_preconditioner(C, Pi, reg):
     r = H.shape[1]
     tr = np.trace(H, axis1=1, axis2=2) / r
     H[:, np.arange(r), np.arange(r)] += 1e-12 * np.maximum(tr, 1e-300)[:, None]
-    L = _cholesky(H)
+    L = _factor(H)
     return L, _lower_inverse(L)
 
 
