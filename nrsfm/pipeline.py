@@ -22,7 +22,7 @@ from .diagnostics import NRSfMWarning, diagnose
 from .metrics import depth_amplification
 from .settings import METHODS, Settings, method_settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
-from .stages.fill import fill_unseen
+from .stages.fill import SPREAD_MAX, fill_unseen
 from .stages.measurement import Factorization, measure, power_of_two_scale
 from .stages.selection import shape_for_rotations
 from .stages.shape import ShapeResult
@@ -123,6 +123,17 @@ class Reconstruction:
         return self.fill_gain > MAX_GAIN
 
     @property
+    def unreliable(self):
+        """(P,) bool: tracks whose 3D in the frames they were not seen in may be far off:
+        :attr:`undetermined` ones, except those filled from their neighbours
+        (``MeasurementSettings.fill = "neighbours"``, the default) whose neighbour fills
+        agree to within :data:`nrsfm.stages.fill.SPREAD_MAX` of the shapes' RMS radius
+        (:attr:`fill_spread`); all False for complete input."""
+        if self.fill_spread is None:
+            return self.undetermined
+        return self.undetermined & ~(self.fill_spread <= SPREAD_MAX)
+
+    @property
     def n_frames(self):
         return self.shapes.shape[0]
 
@@ -202,7 +213,8 @@ class Reconstruction:
                          f"observations filled ({c.method}, lags {c.lags}, "
                          f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
                          f"tracks undetermined (seen in too few frames: their 3D is an "
-                         f"extrapolation)")
+                         f"extrapolation), {int(self.unreliable.sum())} of them unreliable "
+                         f"(their fills from different neighbours disagree)")
         if self.diagnostics is not None:            # notes need no action; flags warned
             lines += [f"  note: {n}" for n in self.diagnostics.notes]
             lines += [f"  WARNING: {f}" for f in self.diagnostics.flags]

@@ -202,14 +202,14 @@ def test_auto_completion_follows_the_lags_rule():
 
 
 def test_reconstruct_warns_when_the_completion_stops_at_its_cap():
-    """Soft-impute extrapolates lost tracks slowly: on this input it stops at its cap of
-    500 iterations, and ``reconstruct`` says so."""
+    """Soft-impute extrapolates lost tracks slowly: on this input (half the tracks lost) it
+    stops at its cap of 500 iterations, and ``reconstruct`` says so."""
     import data_tools as dt
     import nrsfm
     from nrsfm.settings import MeasurementSettings, Settings
 
     seq = dt.make_synthetic(F=40, P=30, K=1, seed=4)
-    Wm, _ = dt.drop_tracks(seq.W, 0.3, seed=1, pattern="tracking")
+    Wm, _ = dt.drop_tracks(seq.W, 0.5, seed=1, pattern="tracking")
     s = Settings(measurement=MeasurementSettings(completion="soft_impute", lags=(0,)))
     with pytest.warns(RuntimeWarning, match=r"^W-completion-cap: .* iteration cap \(500\) before converging"):
         r = nrsfm.reconstruct(Wm, 1, settings=s)

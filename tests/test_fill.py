@@ -59,9 +59,10 @@ def test_fill_checks_the_mask():
 def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
     W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
-    res = nrsfm.reconstruct(W, 2, settings=Settings(
-        measurement=MeasurementSettings(fill="neighbours")))
-    model = nrsfm.reconstruct(W, 2)                 # the default: the shape stage's fill
+    res = nrsfm.reconstruct(W, 2)                   # the default: fill="neighbours"
+    model = nrsfm.reconstruct(W, 2, settings=Settings(
+        measurement=MeasurementSettings(fill="model")))     # the shape stage's fill
+    assert res.params["settings"].measurement.fill == "neighbours"
     assert model.fill_spread is None and "fill" in res.timings
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[seen], model.shapes[seen])
@@ -72,9 +73,11 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     assert np.isnan(res.fill_spread[~filled]).all()
     kept = np.broadcast_to(~filled[None, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[kept], model.shapes[kept])
-    complete = nrsfm.reconstruct(seq.W, 2, settings=Settings(
-        measurement=MeasurementSettings(fill="neighbours")))
-    assert complete.fill_spread is None
+    from nrsfm.stages.fill import SPREAD_MAX
+    np.testing.assert_array_equal(res.unreliable, filled & (res.fill_spread > SPREAD_MAX))
+    np.testing.assert_array_equal(model.unreliable, model.undetermined)   # no spread: all
+    complete = nrsfm.reconstruct(seq.W, 2)
+    assert complete.fill_spread is None and not complete.unreliable.any()
 
 
 # the definition: the per-point loop the batched fill replaced (kept here to test it)

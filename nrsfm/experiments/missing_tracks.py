@@ -9,8 +9,9 @@ W and on W with a fraction of the tracks hit by one of the patterns of
 
 * e3d with complete and with missing data, and e3d over the points seen in each frame for
   both (:func:`nrsfm.experiments.fill.e3d_seen`);
-* the lost points (missing in at least one frame), those flagged undetermined
-  (:attr:`nrsfm.Reconstruction.undetermined`);
+* the lost points (missing in at least one frame), those flagged unreliable
+  (:attr:`nrsfm.Reconstruction.unreliable`: undetermined, and where filled from their
+  neighbours, with neighbour fills that disagree);
 * each lost point's fill error: the mean over the frames it was not seen in of its 3D
   error after e3d's per-frame similarity alignment, RMS shape radius = 1
   (:func:`nrsfm.experiments.fill.point_errors`), for the pipeline's fill and for the
@@ -95,13 +96,13 @@ def track_row(complete, missing, truth, observed):
     -------
     dict
         ``e3d_seen_complete``, ``e3d_seen_missing``, ``lost`` (the lost points),
-        ``flagged`` (those of them undetermined), ``point_fill`` and ``point_fill_rigid``
+        ``flagged`` (those of them unreliable), ``point_fill`` and ``point_fill_rigid``
         (their mean fill errors, pipeline and baseline, in the order of ``lost``), and the
         means ``fill_flagged``, ``fill_unflagged``, ``fill_lost``, ``fill_rigid`` (None
         where no point is of the kind).
     """
     lost = np.flatnonzero(~observed.all(axis=0))
-    flagged = missing.undetermined[lost]
+    flagged = missing.unreliable[lost]
     fill = lost_point_means(point_errors(missing.shapes, truth), observed)[lost]
     rigid = rigid_neighbour_fill(missing.shapes, observed)
     fill_rigid = lost_point_means(point_errors(rigid, truth), observed)[lost]
@@ -133,7 +134,9 @@ def missing_track_table(rows):
             "pipeline at the paper's K. missing: fraction of the entries. e3d seen: over "
             "the points seen in each frame (complete: the complete-data shapes of the same "
             "points). lost points: missing in at least one frame; flagged: of them "
-            "undetermined (fill gain above MAX_GAIN). fill: a lost point's mean error over "
+            "unreliable (Reconstruction.unreliable: fill gain above MAX_GAIN and, where "
+            "filled from their neighbours, their fills' spread above SPREAD_MAX). fill: a "
+            "lost point's mean error over "
             "its unseen frames after e3d's per-frame similarity alignment, RMS shape "
             "radius = 1, mean over the points (flagged, unflagged, all lost) and range "
             "over them; "

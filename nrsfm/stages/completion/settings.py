@@ -11,10 +11,11 @@ MISSING = ("complete", "error")
 #: How W is completed (``MeasurementSettings.completion``); the first is the default.
 COMPLETIONS = ("auto", "factorisation", "soft_impute")
 #: How the shapes of the points not seen are filled (``MeasurementSettings.fill``); the
-#: first is the default (``neighbours`` fills better on lost tracks but costs 0.7 - 2 s on
-#: the synthetic videos against 0.1 s for the shape stage, and doubles reconstruct's time
-#: on 20,000 x 100 dense tracks: docs/missing_data_scale.md, issue 24)
-FILLS = ("model", "neighbours")
+#: first is the default (``neighbours`` fills lost tracks better: on MoCap with 30 % of the
+#: tracks lost, mean fill error .033 - .088 against .059 - .27 with ``model``; it costs
+#: 0.7 - 2 s on the synthetic videos and doubles reconstruct's time on 20,000 x 100 dense
+#: tracks, within issue 24's bound of 5 x: docs/missing_data_scale.md)
+FILLS = ("neighbours", "model")
 
 
 def _choices(values):
@@ -49,10 +50,11 @@ class MeasurementSettings:
         Temporal lags of the completed matrix (distinct, containing 0); ``auto``: the rule
         of :func:`nrsfm.stages.completion.choose_lags`, computed from W's observation mask.
     fill : {_choices(FILLS)}
-        The 3D of a point in the frames it was not seen in: ``model`` (default), the
-        shape stage's fill; ``neighbours``, for the points the data leave undetermined, the
-        median of its rigid, template and affine fills from its neighbours and of the
-        shape stage's fill (:func:`nrsfm.stages.fill.fill_unseen`, issue 24).
+        The 3D of a point in the frames it was not seen in: ``neighbours`` (default), for
+        the points the data leave undetermined, the median of its rigid, template and
+        affine fills from its neighbours and of the shape stage's fill
+        (:func:`nrsfm.stages.fill.fill_unseen`, issue 24), the shape stage's fill for the
+        others; ``model``, the shape stage's fill everywhere.
     """
 
     missing: str = MISSING[0]

@@ -14,7 +14,8 @@ trajectories are smooth), and a row of H has three times the observed entries of
 W. ``lags=(0,)`` is plain nuclear-norm completion of W (for frames in no particular order).
 Solved by soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010): fill the missing entries
 with the current estimate, take the row means as t, soft-threshold the singular values of
-the centred H by tau, average the copies of each missing entry, repeat. tau is continued
+the centred H by tau, average the copies of each missing entry, repeat; each step taken
+from a point extrapolated along the last one (Nesterov's momentum with adaptive restart). tau is continued
 from ``sigma_1 / 10`` down to its final value ``tau = 1e-3 sigma_1`` (sigma_1: the largest
 singular value of the mean-filled, row-centred H), with warm starts: the continuation idea
 of Cabral et al.'s rank continuation (ICCV 2013), whose bilinear objective has the same
@@ -116,27 +117,57 @@ def soft_impute_lagged(Wz, observed, copies, *, tau=None, tau_fraction=TAU_FRACT
                       converged=converged, history=history, **result)
 
 
+def _svt(H, tau):
+    """``U max(S - tau, 0) V'`` of H (m, n) from the eigen-decomposition of the Gram matrix
+    of its shorter side, and the rank kept. The Gram matrix loses relative accuracy only on
+    singular values near ``sqrt(eps) sigma_1``, far below every threshold used here
+    (``tau >= TAU_FRACTION sigma_1``); the lagged MoCap H (714 x 123 for pickup) costs a
+    third of its thin SVD."""
+    tall = H.shape[0] >= H.shape[1]
+    ev, V = np.linalg.eigh(H.T @ H if tall else H @ H.T)
+    s = np.sqrt(np.maximum(ev, 0.0))
+    keep = s > tau
+    coef = (s[keep] - tau) / s[keep]
+    Vk = V[:, keep]
+    fit = (H @ Vk * coef) @ Vk.T if tall else (Vk * coef) @ (Vk.T @ H)
+    return fit, int(keep.sum())
+
+
 def _continuation(Z, missing, copies, taus, tol, max_iter):
     """Soft-impute over the thresholds ``taus``, warm-started, filling ``Z[missing]`` in
-    place. Returns ``(rank, n_iter, converged, history)``."""
+    place. Returns ``(rank, n_iter, converged, history)``.
+
+    Each step is soft-impute's (a proximal gradient step of step 1 on the missing entries)
+    from an extrapolated point ``Z_k + (k - 1) / (k + 2) (Z_k - Z_k-1)`` (Nesterov's
+    momentum, FISTA: Beck and Teboulle 2009), restarted at each threshold and whenever the
+    step turns against the momentum (the gradient restart of O'Donoghue and Candes 2015).
+    The same fixed point as plain soft-impute. Pickup with 30 % of the tracks lost (the
+    ``lost`` pattern, seed 31): 500 iterations without reaching ``tol`` before, 282 with
+    it (``docs/missing_data_scale.md``)."""
     hist_tau, hist_change = [], []
     n_iter, converged, rank = 0, False, 0
+    scale = max(float(np.linalg.norm(Z)), 1e-300)
     for stage, tau_s in enumerate(taus):
         last = stage == len(taus) - 1
         converged = False
+        prev, k = Z[missing], 0
         while n_iter < max_iter:
             n_iter += 1
-            H = Z.ravel()[copies.gather]
+            k += 1
+            cur = Z[missing]
+            Y = Z.copy()
+            Y[missing] = cur + (k - 1) / (k + 2) * (cur - prev)
+            H = Y.ravel()[copies.gather]
             t = H.mean(axis=1, keepdims=True)                   # free row offsets
-            U, s, Vt = np.linalg.svd(H - t, full_matrices=False)
-            s = np.maximum(s - tau_s, 0.0)                      # nuclear-norm prox
-            rank = int(np.count_nonzero(s))
-            fit = (U[:, :rank] * s[:rank]) @ Vt[:rank] + t
-            L = (np.bincount(copies.target, fit.ravel()[copies.order], Z.size)
-                 / copies.counts).reshape(Z.shape)               # mean of each entry's copies
-            change = (np.linalg.norm(L[missing] - Z[missing])
-                      / max(np.linalg.norm(Z), 1e-300))
-            Z[missing] = L[missing]
+            fit, rank = _svt(H - t, tau_s)                      # nuclear-norm prox
+            fit += t
+            new = (np.bincount(copies.target, fit.ravel()[copies.order], Z.size)
+                   / copies.counts).reshape(Z.shape)[missing]   # mean of each entry's copies
+            change = np.linalg.norm(new - cur) / scale
+            if np.vdot(Y[missing] - new, new - cur) > 0:        # against the momentum
+                k = 0
+            prev = cur
+            Z[missing] = new
             hist_tau.append(tau_s)
             hist_change.append(change)
             if change < (tol if last else 10 * tol):
