@@ -407,8 +407,10 @@ def test_rrd_screenshot_script_errors(tmp_path):
 
 def test_missing_data_draws_the_filled_points_by_their_reliability(tmp_path):
     """With missing data the recording holds /world/shapes/filled: per frame, the points not
-    observed there, coloured from yellow (fill gain 1) to red (gain MAX_GAIN^2)."""
+    observed there, coloured from yellow (fill gain 1) to red (gain MAX_GAIN^2), or for the
+    points filled from their neighbours by their fills' spread (orange at SPREAD_MAX)."""
     from nrsfm.stages.completion import MAX_GAIN
+    from nrsfm.stages.fill import SPREAD_MAX
     from nrsfm.views.recording import fill_colors
 
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
@@ -424,5 +426,10 @@ def test_missing_data_draws_the_filled_points_by_their_reliability(tmp_path):
     colours = fill_colors(np.array([1.0, MAX_GAIN, MAX_GAIN ** 2, np.inf]))
     assert colours[0, 1] == 230 and colours[2, 1] == 0 and colours[3, 1] == 0
     assert colours[0, 1] > colours[1, 1] > colours[2, 1]
+    by_spread = fill_colors(np.array([MAX_GAIN ** 2, MAX_GAIN ** 2, 1.0, 1.0]),
+                            np.array([0.0, SPREAD_MAX, 2 * SPREAD_MAX, np.nan]))
+    assert by_spread[0, 1] == 230 and by_spread[2, 1] == 0 and by_spread[3, 1] == 230
+    assert by_spread[1, 1] == colours[1, 1]          # orange at either threshold
+    np.testing.assert_array_equal(c.fill_spread, res.fill_spread)
     complete = recording_content(nrsfm.reconstruct(seq.W, 2), seq)
     assert complete.filled is None

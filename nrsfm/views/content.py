@@ -58,6 +58,7 @@ class RecordingContent:
     tracks: np.ndarray | None = None          # (F, P, 2) measured (centred) W
     filled: np.ndarray | None = None          # (F, P) bool: not observed, the 3D a fill
     fill_gain: np.ndarray | None = None       # (P,) the fill's noise gain (reliability)
+    fill_spread: np.ndarray | None = None     # (P,) neighbour fills' spread (NaN: not so filled)
     reprojected: np.ndarray | None = None     # (F, P, 2) R_f X_f
     triplet_rotations: np.ndarray | None = None   # (K, F, 3, 3) registered, display-aligned
     triplet_kept: np.ndarray | None = None        # (K, F) bool
@@ -129,6 +130,8 @@ def _world_content(result, sequence):
     if getattr(result, "observed", None) is not None:
         c.filled = ~np.asarray(result.observed, bool)
         c.fill_gain = np.asarray(result.fill_gain, float)
+        spread = getattr(result, "fill_spread", None)
+        c.fill_spread = None if spread is None else np.asarray(spread, float)
     return c, Q, R_gt
 
 
