@@ -14,9 +14,9 @@ trajectories are smooth), and a row of H has three times the observed entries of
 W. ``lags=(0,)`` is plain nuclear-norm completion of W (for frames in no particular order).
 Solved by soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010): fill the missing entries
 with the current estimate, take the row means as t, soft-threshold the singular values of
-the centred H by tau, average the copies of each missing entry, repeat; each step taken
-from a point extrapolated along the last one (Nesterov's momentum with adaptive restart). tau is continued
-from ``sigma_1 / 10`` down to its final value ``tau = 1e-3 sigma_1`` (sigma_1: the largest
+the centred H by tau, average the copies of each missing entry, repeat; each step is
+taken from a point extrapolated along the last one (Nesterov's momentum with adaptive
+restart). tau is continued from ``sigma_1 / 10`` down to its final value ``tau = 1e-3 sigma_1`` (sigma_1: the largest
 singular value of the mean-filled, row-centred H), with warm starts: the continuation idea
 of Cabral et al.'s rank continuation (ICCV 2013), whose bilinear objective has the same
 minimisers as the nuclear norm when the factor rank is large enough. The regulariser is
@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..shape.fit_set import weighted_svt
 from .lags import NEIGHBOUR_LAGS, lag_copies
 from .masks import observed_entries
 from .result import Completion
@@ -117,22 +118,6 @@ def soft_impute_lagged(Wz, observed, copies, *, tau=None, tau_fraction=TAU_FRACT
                       converged=converged, history=history, **result)
 
 
-def _svt(H, tau):
-    """``U max(S - tau, 0) V'`` of H (m, n) from the eigen-decomposition of the Gram matrix
-    of its shorter side, and the rank kept. The Gram matrix loses relative accuracy only on
-    singular values near ``sqrt(eps) sigma_1``, far below every threshold used here
-    (``tau >= TAU_FRACTION sigma_1``); the lagged MoCap H (714 x 123 for pickup) costs a
-    third of its thin SVD."""
-    tall = H.shape[0] >= H.shape[1]
-    ev, V = np.linalg.eigh(H.T @ H if tall else H @ H.T)
-    s = np.sqrt(np.maximum(ev, 0.0))
-    keep = s > tau
-    coef = (s[keep] - tau) / s[keep]
-    Vk = V[:, keep]
-    fit = (H @ Vk * coef) @ Vk.T if tall else (Vk * coef) @ (Vk.T @ H)
-    return fit, int(keep.sum())
-
-
 def _continuation(Z, missing, copies, taus, tol, max_iter):
     """Soft-impute over the thresholds ``taus``, warm-started, filling ``Z[missing]`` in
     place. Returns ``(rank, n_iter, converged, history)``.
@@ -155,16 +140,21 @@ def _continuation(Z, missing, copies, taus, tol, max_iter):
             n_iter += 1
             k += 1
             cur = Z[missing]
+            y = cur + (k - 1) / (k + 2) * (cur - prev)          # the extrapolated point
             Y = Z.copy()
-            Y[missing] = cur + (k - 1) / (k + 2) * (cur - prev)
+            Y[missing] = y
             H = Y.ravel()[copies.gather]
             t = H.mean(axis=1, keepdims=True)                   # free row offsets
-            fit, rank = _svt(H - t, tau_s)                      # nuclear-norm prox
+            # nuclear-norm prox: singular value thresholding from the Gram matrix of H's
+            # short side (a third of the thin SVD's cost on pickup's 714 x 123 H; the small
+            # singular values it loses are far below every threshold here)
+            fit, s = weighted_svt(H - t, np.full(min(H.shape), tau_s))
+            rank = int(np.count_nonzero(s))
             fit += t
             new = (np.bincount(copies.target, fit.ravel()[copies.order], Z.size)
                    / copies.counts).reshape(Z.shape)[missing]   # mean of each entry's copies
             change = np.linalg.norm(new - cur) / scale
-            if np.vdot(Y[missing] - new, new - cur) > 0:        # against the momentum
+            if np.vdot(y - new, new - cur) > 0:                 # against the momentum
                 k = 0
             prev = cur
             Z[missing] = new

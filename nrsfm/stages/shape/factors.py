@@ -146,6 +146,13 @@ def frame_hessians(C, Pi, reg):
     return H
 
 
+def _pivot_floor(H):
+    """(n,) the smallest squared Cholesky pivot of each matrix of the batch H (n, r, r):
+    ``1e-14`` of its mean diagonal (see :func:`_cholesky`)."""
+    tr = np.trace(H, axis1=1, axis2=2) / H.shape[1]
+    return 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
+
+
 def _cholesky(H):
     """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n.
 
@@ -154,8 +161,7 @@ def _cholesky(H):
     its inverse stay finite (before, the pivot went to 1e-300 and the inverse overflowed)."""
     r = H.shape[1]
     L = np.zeros_like(H)
-    tr = np.trace(H, axis1=1, axis2=2) / r
-    floor = 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
+    floor = _pivot_floor(H)
     for j in range(r):
         Lj = L[:, j, :j]
         d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), floor))
@@ -185,14 +191,11 @@ def _factor(H):
     """Lower Cholesky factors of the SPD batch H (n, r, r): LAPACK's, batched by numpy, or
     :func:`_cholesky` (with its pivot floor) where a pivot of LAPACK's falls below that
     floor or LAPACK fails."""
-    r = H.shape[1]
     try:
         L = np.linalg.cholesky(H)
     except np.linalg.LinAlgError:
         return _cholesky(H)
-    tr = np.trace(H, axis1=1, axis2=2) / r
-    floor = 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
-    if not np.all(np.diagonal(L, axis1=1, axis2=2) ** 2 >= floor[:, None]):
+    if not np.all(np.diagonal(L, axis1=1, axis2=2) ** 2 >= _pivot_floor(H)[:, None]):
         return _cholesky(H)
     return L
 
