@@ -452,3 +452,30 @@ def test_c_step_is_the_minimiser_and_the_frame_factors_invert():
     H[0] = np.outer(H[0, 0], H[0, 0])                   # rank one: LAPACK fails, the loop floors
     L2 = factors._factor(H)
     assert np.all(np.isfinite(L2)) and np.allclose(L2[1:], L[1:], atol=1e-10)
+
+
+@pytest.mark.parametrize("P, r", [(6, 4), (40, 2)])     # X# formed; factored (3P > 9r)
+def test_reduced_objective_is_the_objective_at_the_c_step(P, r):
+    """``reduced_objective`` (the C step, then E and dE/dB alone) gives the
+    values of :func:`objective` at the C step's C, in both of its branches, and the
+    blocked triangular inverse (r > 8) inverts."""
+    from nrsfm.stages.shape import factors
+    rng = np.random.default_rng(5)
+    F = 9
+    seq = data_tools.make_synthetic(F=F, P=P, K=2, motion="random", seed=4)
+    Rf = seq.rotations[:, :2]
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(F, 2, P)).reshape(F, 3 * P)
+    w2 = float(np.sum(seq.W ** 2))
+    reg = np.linspace(0.0, 0.9, r) * w2 ** 0.5
+    B = rng.standard_normal((F, r))
+    C, (E, data, gB, gC) = factors.reduced_objective(B, factors.viewing_directions(Rf), Pi,
+                                                      Xi, w2, reg)
+    assert np.allclose(C, factors.c_step(B, Rf, seq.W, reg), rtol=1e-12, atol=1e-14)
+    E_ref, data_ref, gB_ref, _ = factors.objective(B, C, Pi, Xi, w2, reg)
+    assert E == pytest.approx(E_ref, rel=1e-12) and data == pytest.approx(data_ref, rel=1e-12)
+    assert np.allclose(gB, gB_ref, rtol=1e-10, atol=1e-12 * np.abs(gB_ref).max())
+    assert gC == 0.0
+    L = np.linalg.cholesky(np.eye(13) + (lambda A: A @ A.transpose(0, 2, 1))(
+        rng.standard_normal((5, 13, 13))))
+    assert np.allclose(factors._lower_inverse(L) @ L, np.eye(13), atol=1e-10)

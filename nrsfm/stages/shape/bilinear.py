@@ -36,9 +36,11 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   of W, so the minimiser for ``c W`` is ``c`` times that for ``W``.
 * Solver: variable projection (:mod:`.factors`). C is eliminated in closed form (one 3r x 3r
   normal system shared by all points); ``f(B) = min_C E(B, C)`` is minimised by L-BFGS
-  with its exact gradient, preconditioned per frame, from the closed-form rank-K start
-  (r = K) or, for r > K, the leading singular vectors of X_init# with the closed form's
-  depth added, restarted every few iterations from the SVD-aligned factors of the same X#. Each iteration
+  with its exact gradient and the per-frame Hessians as its initial inverse Hessian, from
+  the closed-form rank-K start (r = K) or, for r > K, the leading singular vectors of the
+  closed-form fit with a share of its residual, re-aligned every few iterations to the
+  SVD-aligned factors of the same X# (L-BFGS's memory carried through that change of
+  basis). Each iteration
   is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
   thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
   when the relative gradient norm is below ``gtol``.
@@ -65,8 +67,8 @@ from ...warnings_catalog import text
 from .base import SolverSettings, check_prior
 from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
-from .factors import (c_step, c_step_xi, minimise, objective, project, rank_certificate,
-                      relative_gradient, viewing_directions)
+from .factors import (c_step, minimise, objective, project, rank_certificate,
+                      reduced_objective, relative_gradient, viewing_directions)
 from .common import ShapeResult, check_shape_inputs
 
 __all__ = ["BilinearSettings", "ClosedFormSettings", "GAP_MAX", "bilinear_weights",
@@ -259,8 +261,11 @@ class _Objective:
         self.n = viewing_directions(Rf)
         self.hist = hist
 
-    def c_step(self, B):
-        return c_step_xi(B, self.n, self.Xi, self.reg[:B.shape[1]])
+    def reduced(self, B):
+        """(C, (E, data, dE/dB, 0.0)) at ``C = argmin_C E(B, C)``
+        (:func:`.factors.reduced_objective`)."""
+        return reduced_objective(B, self.n, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]],
+                                 C_RIDGE)
 
     def values(self, B, C):                                          # ||Wn||_F^2 = 1
         return objective(B, C, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])
@@ -378,7 +383,7 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
         if B0 is None:
             B0 = _start(Xi, r, cache, Wn, Rf, Uw, sw, K)
         B0 = B0 / np.linalg.norm(B0, axis=0) * math.sqrt(max(sigma[0], 1e-300) / r)
-    B, C, rel, n_iter = minimise(B0, obj.values, obj.c_step, obj.Pi, obj.reg, st.gtol,
+    B, C, rel, n_iter = minimise(B0, obj.reduced, obj.Pi, obj.reg, st.gtol,
                                  st.max_iter, on_iterate=obj.record,
                                  prune_rtol=PRUNE_RTOL if prune else None)
     live = B.shape[1]
@@ -412,6 +417,14 @@ def _warm_factors(start, Wn, r, why):
                          f"rule {why!r} and first rank {r}); got {type(start).__name__}")
     return np.asarray(B, float) / math.sqrt(float(p["normalisation"])), int(p["rank"])
 
+
+#: ridge on C of the C step (normalised units, ||W||_F = 1): where W has fewer independent
+#: directions than the C step has unknowns (shark's noise-free W of rank 5 at r = 3), its
+#: normal matrix is singular to rounding, the C it returns is arbitrary along the null
+#: directions and E jitters by 1e-11 between evaluations; with the ridge C is the
+#: minimum-norm one there and E a smooth function (shark through the pipeline: 1827 ->
+#: 121 iterations; a change of the answer at the 1e-12 level; docs/shape_stage.md)
+C_RIDGE = 1e-12
 
 #: the start's share of the in-plane residual of the rank-K fit (:func:`_start`): it only
 #: orients the columns beyond K (1e-4, 1e-3, 1e-2 reach the same minima in the same

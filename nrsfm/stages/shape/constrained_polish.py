@@ -80,9 +80,12 @@ def solve_penalised(B, C, Pi, Xi, Wf, Rf, reg, gtol, max_iter):
     residual ||W - R X|| and the iteration count."""
     F = B.shape[0]
     W2 = Wf.reshape(2 * F, -1)
-    B, C, rel, n_iter = minimise(
-        B, lambda B, C: _energy(B, C, Pi, Xi, Wf, Rf, reg),
-        lambda B: c_step(B, Rf, W2, reg), Pi, reg, gtol, max_iter)
+
+    def reduced(B):
+        C = c_step(B, Rf, W2, reg)
+        return C, _energy(B, C, Pi, Xi, Wf, Rf, reg)
+
+    B, C, rel, n_iter = minimise(B, reduced, Pi, reg, gtol, max_iter)
     res = _energy(B, C, Pi, Xi, Wf, Rf, reg)[1]
     return B, C, rel, res, max(n_iter, 1)
 

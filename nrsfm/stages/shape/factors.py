@@ -12,8 +12,10 @@ few matrix products; no per-frame Python loop and no per-frame LAPACK call):
 * :func:`frame_preconditioner`: the per-frame Hessians ``H_f = d^2 E / dB_f^2`` at fixed C,
   their Cholesky factors and inverse factors (batched, vectorised over frames);
 * :func:`svd_align`: the factorisation of the same X# that minimises the regulariser;
-* :func:`minimise`: L-BFGS on the reduced ``f(B) = min_C E(B, C)`` (variable projection)
-  in per-frame preconditioned variables, restarted from aligned factors.
+* :func:`reduced_objective`: ``f(B) = min_C E(B, C)`` (variable projection) and its gradient;
+* :func:`minimise`: L-BFGS on f with the per-frame Hessians as its initial inverse
+  Hessian, from aligned factors re-aligned every few iterations (its memory carried through
+  the change of basis).
 """
 
 from __future__ import annotations
@@ -22,15 +24,18 @@ import math
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 
-__all__ = ["SEGMENT", "c_step", "c_step_xi", "viewing_directions", "frame_hessians", "frame_preconditioner", "minimise", "project",
+__all__ = ["SEGMENT", "c_step", "c_step_xi", "reduced_objective", "viewing_directions", "frame_hessians", "frame_preconditioner", "minimise", "project",
            "objective", "rank_certificate", "relative_gradient", "svd_align"]
 
 #: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
 #: iterations (measured on pickup: 2120 iterations to a relative gradient of 1e-9 without
 #: the alignment, 314 / 189 / 191 with it every 30 / 10 / 5; docs/shape_stage.md)
 SEGMENT = 10
+
+
+#: ridge of the C step's normal matrix, relative to its mean diagonal
+C_RIDGE = 1e-11
 
 
 def c_step(B, Rf, W, reg):
@@ -87,6 +92,34 @@ def c_step_xi(B, n, Xi, reg):
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
         c = np.linalg.lstsq(N, rhs, rcond=None)[0]
     return c.reshape(3, r, P).transpose(0, 2, 1).reshape(3 * P, r)
+
+
+def reduced_objective(B, n, Pi, Xi, w2, reg, ridge=0.0):
+    """The reduced objective ``f(B) = min_C E(B, C)`` of (*): (C, (E, data, dE/dB, 0.0)).
+
+    C is :func:`c_step_xi`'s, at which ``dE/dC`` vanishes (returned as 0.0): E and dE/dB as
+    :func:`objective` computes them (X# formed, or in factored form where 3P > 9r), without
+    its dE/dC (a quarter of its products). E is evaluated at that C, not read from the
+    normal equations (``(w2 - <A'W, c>) / 2 + ...`` holds only where they are solved
+    exactly: on shark's noise-free W of rank 5 it went 1e-11 below the true E, and the line
+    search followed rounding). ``ridge`` (scalar) is added to the weights of C alone, and
+    its term ``ridge |C|^2 / 2`` to E, so that C is the minimum-norm one where the normal
+    matrix is singular and (C, E) stay smooth functions of B."""
+    C = c_step_xi(B, n, Xi, reg + ridge)
+    r = B.shape[1]
+    if Xi.shape[1] <= 9 * r:
+        Xs = B @ C.T
+        PX = project(Pi, Xs)
+        data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
+        gB = (PX - Xi) @ C
+    else:
+        XiC = Xi @ C
+        gB = np.matmul(frame_hessians(C, Pi, np.zeros(r)), B[:, :, None])[:, :, 0]
+        data = 0.5 * max(w2 - 2.0 * float(np.vdot(B, XiC)) + float(np.vdot(B, gB)), 0.0)
+        gB -= XiC
+    sC = np.sum(C ** 2, axis=0)
+    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + sC) + ridge * np.sum(sC))
+    return C, (E, data, gB + B * reg, 0.0)
 
 
 def project(Pi, Xs):
@@ -173,9 +206,25 @@ def _cholesky(H):
 
 
 def _lower_inverse(L):
-    """Inverses of a batch of lower-triangular matrices (n, r, r), by forward substitution
-    with the batch as the innermost axis (every step is a contiguous multiply-add over n;
-    drink, 1102 matrices of 21 x 21: 2 ms, against 6 - 9 ms with the batch outermost)."""
+    """Inverses of a batch of lower-triangular matrices (n, r, r): by blocks
+    (``[[A, 0], [M, D]]^-1 = [[A^-1, 0], [-D^-1 M A^-1, D^-1]]``, batched products) down to
+    blocks of at most 8, which :func:`_lower_inverse_small` inverts (drink, 1102 matrices of
+    21 x 21: 3 - 5 ms, against 5 - 6 ms by forward substitution alone)."""
+    r = L.shape[1]
+    if r <= 8:
+        return _lower_inverse_small(L)
+    h = r // 2
+    Ai, Di = _lower_inverse(L[:, :h, :h]), _lower_inverse(L[:, h:, h:])
+    X = np.zeros_like(L)
+    X[:, :h, :h] = Ai
+    X[:, h:, h:] = Di
+    X[:, h:, :h] = -np.matmul(Di, np.matmul(L[:, h:, :h], Ai))
+    return X
+
+
+def _lower_inverse_small(L):
+    """:func:`_lower_inverse` by forward substitution with the batch as the innermost axis
+    (every step a contiguous multiply-add over n)."""
     n, r, _ = L.shape
     A = np.ascontiguousarray(L.transpose(1, 2, 0))                  # (r, r, n)
     X = np.zeros_like(A)
@@ -229,18 +278,23 @@ def relative_gradient(B, C, gB, gC):
     return g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
 
 
-class _Done(Exception):
-    pass
-
-
-def _restart(B, c_step_of, prune_rtol):
-    """Aligned factors at B (the last columns dropped below ``prune_rtol``), C re-solved."""
-    B, C = svd_align(B, c_step_of(B))
+def _aligned(B, C, prune_rtol):
+    """:func:`svd_align` with the change of basis: (B', keep, M, M^-T) with ``B' = (B M)[:,
+    :keep]`` (the last columns dropped at or below ``prune_rtol`` of the largest singular
+    value of X#); M and M^-T are None where a singular value is at rounding level (no
+    transport of the curvature pairs)."""
+    Qb, Rb = np.linalg.qr(B)
+    Qc, Rc = np.linalg.qr(C)
+    U, s, _ = np.linalg.svd(Rb @ Rc.T)
+    q = np.sqrt(s)
+    keep = B.shape[1]
     if prune_rtol is not None:
-        s = np.sum(B ** 2, axis=0)                   # singular values of X# (aligned)
         keep = max(int(np.sum(s > prune_rtol * s[0])), 1)
-        B = B[:, :keep]
-    return B, c_step_of(B)
+    B = (Qb @ U)[:, :keep] * q[:keep]
+    d = np.abs(np.diagonal(Rb))
+    if not (q[-1] > 1e-12 * q[0] and d.min() > 1e-12 * d.max()):
+        return B, keep, None, None
+    return B, keep, scipy.linalg.solve_triangular(Rb, U * q), (Rb.T @ U) / q
 
 
 def rank_certificate(B, C, Pi, Xi, reg_next):
@@ -284,27 +338,77 @@ def rank_certificate(B, C, Pi, Xi, reg_next):
     return float(s[0]) / max(float(reg_next[0]), 1e-300), s, U
 
 
-def minimise(B, evaluate, c_step_of, Pi, reg, gtol, max_iter, on_iterate=None,
-             segment=None, prune_rtol=None):
+def _two_loop(g, S, Y, h0):
+    """``-H g`` of L-BFGS (Nocedal and Wright, Alg. 7.4) from the pairs (S, Y), oldest
+    first, with the initial inverse Hessian ``gamma h0`` (``gamma = s'y / y'h0(y)`` of the
+    newest pair, 1 without pairs)."""
+    q = g.copy()
+    steps = []
+    for s_, y_ in zip(reversed(S), reversed(Y)):
+        rho = 1.0 / float(np.vdot(y_, s_))
+        a = rho * float(np.vdot(s_, q))
+        q -= a * y_
+        steps.append((a, rho))
+    gamma = 1.0
+    if S:
+        gamma = float(np.vdot(S[-1], Y[-1])) / float(np.vdot(Y[-1], h0(Y[-1])))
+    d = gamma * h0(q)
+    for s_, y_, (a, rho) in zip(S, Y, reversed(steps)):
+        d += (a - rho * float(np.vdot(y_, d))) * s_
+    return -d
+
+
+#: the line search: sufficient decrease (Armijo), the approximate Wolfe test's bound on the
+#: slope at the step (Hager and Zhang 2005: ``phi'(t) <= (2 ARMIJO_HZ - 1) phi'(0)``), and
+#: the most backtracking steps
+ARMIJO, ARMIJO_HZ, MAX_BACKTRACK = 1e-4, 0.1, 40
+#: E is trusted to this fraction of its value at the start of :func:`minimise`: below it,
+#: a step is judged by its slope (E is a difference of terms of the size of ||W||^2)
+E_ROUNDING = 1e-12
+
+
+def _line_search(reduced, B, d, E, slope, e_tol):
+    """The first step ``B + t d`` from t = 1 with sufficient decrease, or, where the change
+    of E is within its rounding ``e_tol``, with the approximate Wolfe slope (t shrunk by
+    quadratic interpolation, kept in [0.1 t, 0.5 t]): (B_t, C_t, values), or None."""
+    t = 1.0
+    for _ in range(MAX_BACKTRACK):
+        Bt = B + t * d
+        Ct, vt = reduced(Bt)
+        if vt[0] <= E + ARMIJO * t * slope:
+            return Bt, Ct, vt
+        if vt[0] <= E + e_tol and float(np.vdot(vt[2], d)) <= (2 * ARMIJO_HZ - 1) * slope:
+            return Bt, Ct, vt
+        curv = 2.0 * (vt[0] - E - slope * t)
+        t_q = -slope * t * t / curv if curv > 0 else 0.5 * t
+        t = min(max(t_q, 0.1 * t), 0.5 * t)
+    return None
+
+
+def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
+             prune_rtol=None):
     """L-BFGS on the reduced objective ``f(B) = min_C E(B, C)`` of (*) from B (F, r).
 
-    In preconditioned variables ``z_f = L_f' B_f`` (``L_f L_f' = H_f`` at the current C),
-    restarted every ``segment`` iterations from :func:`svd_align`-ed factors with a fresh
-    preconditioner (alignment keeps X# and never raises E; without it the columns sort
-    their singular values among the weights over hundreds of iterations). With
-    ``prune_rtol``, aligned columns whose singular value is at most ``prune_rtol`` times the
-    largest are dropped at each restart (they are the last ones, so the weights of the
-    others do not change; ``evaluate`` and ``c_step_of`` must read the weights of the first
-    ``B.shape[1]`` columns); whether they should stay zero is the caller's test
-    (:func:`rank_certificate`).
+    The initial inverse Hessian of L-BFGS is the per-frame block diagonal ``H_f^-1``
+    (``H_f = d^2 E / dB_f^2`` at the current C, :func:`frame_preconditioner`), refreshed
+    every ``segment`` iterations together with an :func:`svd_align`-ment of the factors
+    (which keeps X# and never raises E; without it the columns sort their singular values
+    among the weights over hundreds of iterations). The curvature pairs are carried
+    through the alignment's change of basis (``s -> s M``, ``y -> y M^-T``), so the
+    restarts do not empty L-BFGS's memory; the line search asks for sufficient decrease
+    from the full step (:func:`_line_search`). With ``prune_rtol``, aligned columns whose
+    singular value is at most ``prune_rtol`` times the largest are dropped at a restart
+    (they are the last ones, so the weights of the others do not change; ``reduced`` must
+    read the weights of the first ``B.shape[1]`` columns; the memory is emptied then);
+    whether they should stay zero is the caller's test (:func:`rank_certificate`).
 
     Parameters
     ----------
     B : (F, r) ndarray
-    evaluate : callable(B, C) -> (E, data, gB, gC)
-        The objective, its data term (or any other measure) and its gradients at (B, C),
-        as :func:`objective` returns them.
-    c_step_of : callable(B) -> C
+    reduced : callable(B) -> (C, (E, data, gB, gC))
+        ``C = argmin_C E(B, C)`` and, at (B, C), the objective, its data term (or any
+        other measure) and its gradients (gC may be 0.0: it vanishes at that C), as
+        :func:`reduced_objective` returns them.
     Pi : (F, 3, 3) ndarray
         ``R_f'R_f``.
     reg : (r,) ndarray
@@ -323,58 +427,60 @@ def minimise(B, evaluate, c_step_of, Pi, reg, gtol, max_iter, on_iterate=None,
     B, C : the factors (aligned, r or fewer columns), rel : the final relative gradient,
     n_iter : int
     """
-    F = B.shape[0]
     segment = SEGMENT if segment is None else segment
-    B, C = _restart(B, c_step_of, None)             # a start's small columns may grow
-    vals = evaluate(B, C)
+    C, _ = reduced(B)
+    B, _, _, _ = _aligned(B, C, None)               # a start's small columns may grow
+    C, vals = reduced(B)
     rel = relative_gradient(B, C, vals[2], vals[3])
     if on_iterate is not None:
         on_iterate(B, C, vals)
-    n_iter = 0
-    state = {}
+    n_iter, S, Y = 0, [], []
+    e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
-        r = B.shape[1]
-        L, Linv = frame_preconditioner(C, Pi, reg[:r])
+        _, Linv = frame_preconditioner(C, Pi, reg[:B.shape[1]])
 
-        def to_B(z):
-            return np.matmul(z.reshape(F, 1, r), Linv)[:, 0, :]        # L_f^-T z_f
+        def h0(q):                                  # H_f^-1 q_f = L_f^-T L_f^-1 q_f
+            return np.matmul(Linv.transpose(0, 2, 1), np.matmul(Linv, q[:, :, None]))[:, :, 0]
 
-        def fun(z):
-            Bz = to_B(z)
-            Cz = c_step_of(Bz)
-            v = evaluate(Bz, Cz)
-            state["last"] = (z.copy(), Bz, Cz, v)
-            return v[0], np.matmul(Linv, v[2][:, :, None])[:, :, 0].ravel()
-
-        def callback(zk):
-            nonlocal n_iter, rel
+        for _ in range(min(segment, max_iter - n_iter)):
+            d = _two_loop(vals[2], S, Y, h0)
+            slope = float(np.vdot(vals[2], d))
+            if not slope < 0 and S:                 # not a descent direction: memory emptied
+                S, Y = [], []
+                d = -h0(vals[2])
+                slope = float(np.vdot(vals[2], d))
+            step = _line_search(reduced, B, d, vals[0], slope, e_tol) if slope < 0 else None
+            if step is None:
+                break
+            _add_pair(S, Y, step[0] - B, step[2][2] - vals[2])
+            B, C, vals = step
             n_iter += 1
-            z_last, Bk, Ck, v = state["last"]
-            if not np.array_equal(z_last, zk):          # not the last evaluated point
-                Bk = to_B(zk)
-                Ck = c_step_of(Bk)
-                v = evaluate(Bk, Ck)
-            state["B"] = Bk
-            rel = relative_gradient(Bk, Ck, v[2], v[3])
+            rel = relative_gradient(B, C, vals[2], vals[3])
             if on_iterate is not None:
-                on_iterate(Bk, Ck, v)
-            if rel <= gtol or n_iter >= max_iter:
-                raise _Done
-
-        n_before = n_iter
-        z0 = np.matmul(B[:, None, :], L)[:, 0, :].ravel()                # L_f' B_f
-        state["B"] = B
-        try:
-            out = scipy.optimize.minimize(
-                fun, z0, jac=True, method="L-BFGS-B", callback=callback,
-                options=dict(maxiter=min(segment, max_iter - n_iter), maxcor=20,
-                             gtol=0.0, ftol=0.0, maxls=40))
-            B = to_B(out.x)
-        except _Done:
-            B = state["B"]
-        B, C = _restart(B, c_step_of, prune_rtol)
-        vals = evaluate(B, C)
+                on_iterate(B, C, vals)
+            if rel <= gtol:
+                break
+        else:
+            step = True
+        r = B.shape[1]
+        B, keep, M, Mt = _aligned(B, C, prune_rtol)
+        C, vals = reduced(B)
         rel = relative_gradient(B, C, vals[2], vals[3])
-        if n_iter == n_before:                          # no progress possible (rounding)
+        if step is None and not S:                  # no descent possible (rounding)
             break
+        carry = step is not None and keep == r and M is not None
+        S, Y = ([s_ @ M for s_ in S], [y_ @ Mt for y_ in Y]) if carry else ([], [])
     return B, C, rel, n_iter
+
+
+#: curvature pairs kept by L-BFGS
+MEMORY = 20
+
+
+def _add_pair(S, Y, s_, y_):
+    """Keep (s, y) when ``s'y > 0`` (the update stays positive definite), at most MEMORY."""
+    if float(np.vdot(s_, y_)) > 1e-12 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
+        S.append(s_)
+        Y.append(y_)
+        if len(S) > MEMORY:
+            del S[0], Y[0]
