@@ -205,21 +205,23 @@ def _cholesky(H):
     return L
 
 
-def _lower_inverse(L):
+def _lower_inverse(L, out=None):
     """Inverses of a batch of lower-triangular matrices (n, r, r): by blocks
-    (``[[A, 0], [M, D]]^-1 = [[A^-1, 0], [-D^-1 M A^-1, D^-1]]``, batched products) down to
-    blocks of at most 8, which :func:`_lower_inverse_small` inverts (drink, 1102 matrices of
-    21 x 21: 3 - 5 ms, against 5 - 6 ms by forward substitution alone)."""
+    (``[[A, 0], [M, D]]^-1 = [[A^-1, 0], [-D^-1 M A^-1, D^-1]]``, batched products, written
+    into one array) down to blocks of at most 8, which :func:`_lower_inverse_small` inverts
+    (drink, 1102 matrices of 21 x 21: 3 - 5 ms, against 5 - 6 ms by forward substitution
+    alone)."""
     r = L.shape[1]
+    if out is None:
+        out = np.zeros_like(L)
     if r <= 8:
-        return _lower_inverse_small(L)
+        out[...] = _lower_inverse_small(L)
+        return out
     h = r // 2
-    Ai, Di = _lower_inverse(L[:, :h, :h]), _lower_inverse(L[:, h:, h:])
-    X = np.zeros_like(L)
-    X[:, :h, :h] = Ai
-    X[:, h:, h:] = Di
-    X[:, h:, :h] = -np.matmul(Di, np.matmul(L[:, h:, :h], Ai))
-    return X
+    Ai = _lower_inverse(L[:, :h, :h], out[:, :h, :h])
+    Di = _lower_inverse(L[:, h:, h:], out[:, h:, h:])
+    out[:, h:, :h] = -np.matmul(Di, np.matmul(L[:, h:, :h], Ai))
+    return out
 
 
 def _lower_inverse_small(L):
@@ -338,10 +340,20 @@ def rank_certificate(B, C, Pi, Xi, reg_next):
     return float(s[0]) / max(float(reg_next[0]), 1e-300), s, U
 
 
-def _two_loop(g, S, Y, h0):
+def _half(Linv, q):
+    """``L_f^-1 q_f`` for every frame: q (F, r)."""
+    return np.matmul(Linv, q[:, :, None])
+
+
+def _h0(Linv, q):
+    """``H_f^-1 q_f = L_f^-T L_f^-1 q_f`` for every frame: q (F, r)."""
+    return np.matmul(Linv.transpose(0, 2, 1), _half(Linv, q))[:, :, 0]
+
+
+def _two_loop(g, S, Y, Linv):
     """``-H g`` of L-BFGS (Nocedal and Wright, Alg. 7.4) from the pairs (S, Y), oldest
-    first, with the initial inverse Hessian ``gamma h0`` (``gamma = s'y / y'h0(y)`` of the
-    newest pair, 1 without pairs)."""
+    first, with the initial inverse Hessian ``gamma H_f^-1`` (:func:`_h0`; ``gamma = s'y /
+    y'H_f^-1 y`` of the newest pair, 1 without pairs)."""
     q = g.copy()
     steps = []
     for s_, y_ in zip(reversed(S), reversed(Y)):
@@ -351,8 +363,9 @@ def _two_loop(g, S, Y, h0):
         steps.append((a, rho))
     gamma = 1.0
     if S:
-        gamma = float(np.vdot(S[-1], Y[-1])) / float(np.vdot(Y[-1], h0(Y[-1])))
-    d = gamma * h0(q)
+        ly = _half(Linv, Y[-1])
+        gamma = float(np.vdot(S[-1], Y[-1])) / float(np.vdot(ly, ly))
+    d = gamma * _h0(Linv, q)
     for s_, y_, (a, rho) in zip(S, Y, reversed(steps)):
         d += (a - rho * float(np.vdot(y_, d))) * s_
     return -d
@@ -438,16 +451,12 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
     e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
         _, Linv = frame_preconditioner(C, Pi, reg[:B.shape[1]])
-
-        def h0(q):                                  # H_f^-1 q_f = L_f^-T L_f^-1 q_f
-            return np.matmul(Linv.transpose(0, 2, 1), np.matmul(Linv, q[:, :, None]))[:, :, 0]
-
         for _ in range(min(segment, max_iter - n_iter)):
-            d = _two_loop(vals[2], S, Y, h0)
+            d = _two_loop(vals[2], S, Y, Linv)
             slope = float(np.vdot(vals[2], d))
             if not slope < 0 and S:                 # not a descent direction: memory emptied
                 S, Y = [], []
-                d = -h0(vals[2])
+                d = -_h0(Linv, vals[2])
                 slope = float(np.vdot(vals[2], d))
             step = _line_search(reduced, B, d, vals[0], slope, e_tol) if slope < 0 else None
             if step is None:
