@@ -264,8 +264,7 @@ class _Objective:
     def reduced(self, B):
         """(C, (E, data, dE/dB, 0.0)) at ``C = argmin_C E(B, C)``
         (:func:`.factors.reduced_objective`)."""
-        return reduced_objective(B, self.n, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]],
-                                 C_RIDGE)
+        return reduced_objective(B, self.n, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])
 
     def values(self, B, C):                                          # ||Wn||_F^2 = 1
         return objective(B, C, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])
@@ -375,7 +374,7 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
     Xi = Xi3.reshape(F, 3 * P)
     a = bilinear_weights(sigma, r, prior)
     mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
-    obj = _Objective(Rf, Wn, Xi, mu_n * a, cache["hist"])
+    obj = _Objective(Rf, Wn, Xi, mu_n * a + RIDGE, cache["hist"])
     warm = cache.pop("warm", None)
     if warm is not None:
         B0 = warm
@@ -418,13 +417,16 @@ def _warm_factors(start, Wn, r, why):
     return np.asarray(B, float) / math.sqrt(float(p["normalisation"])), int(p["rank"])
 
 
-#: ridge on C of the C step (normalised units, ||W||_F = 1): where W has fewer independent
-#: directions than the C step has unknowns (shark's noise-free W of rank 5 at r = 3), its
-#: normal matrix is singular to rounding, the C it returns is arbitrary along the null
-#: directions and E jitters by 1e-11 between evaluations; with the ridge C is the
-#: minimum-norm one there and E a smooth function (shark through the pipeline: 1827 ->
-#: 121 iterations; a change of the answer at the 1e-12 level; docs/shape_stage.md)
-C_RIDGE = 1e-12
+#: ridge added to every weight of (*) (normalised units, ||W||_F = 1; a nuclear norm of
+#: 1e-12): where W has fewer independent directions than the fit has unknowns (shark's
+#: noise-free W of rank 5 at r = 3), the data leave X# free along some directions, and
+#: the organic prior's first weight (0) does not bound them. Without it the C step was
+#: singular to rounding, E jittered by 1e-11 between evaluations, and the first column grew
+#: along those directions wherever the solver happened to go (shark through the pipeline:
+#: 1827 iterations; W x 3 gave another answer, e3d .0105 against .0162); with it the answer
+#: is the one of least norm there (59 iterations at every scale). It moves exact answers by
+#: about 1e-12 (docs/shape_stage.md)
+RIDGE = 1e-12
 
 #: the start's share of the in-plane residual of the rank-K fit (:func:`_start`): it only
 #: orients the columns beyond K (1e-4, 1e-3, 1e-2 reach the same minima in the same

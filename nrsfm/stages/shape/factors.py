@@ -34,10 +34,6 @@ __all__ = ["SEGMENT", "c_step", "c_step_xi", "reduced_objective", "viewing_direc
 SEGMENT = 10
 
 
-#: ridge of the C step's normal matrix, relative to its mean diagonal
-C_RIDGE = 1e-11
-
-
 def c_step(B, Rf, W, reg):
     """argmin_C E(B, C) of (*): one (3r x 3r) system shared by all points.
 
@@ -94,7 +90,7 @@ def c_step_xi(B, n, Xi, reg):
     return c.reshape(3, r, P).transpose(0, 2, 1).reshape(3 * P, r)
 
 
-def reduced_objective(B, n, Pi, Xi, w2, reg, ridge=0.0):
+def reduced_objective(B, n, Pi, Xi, w2, reg):
     """The reduced objective ``f(B) = min_C E(B, C)`` of (*): (C, (E, data, dE/dB, 0.0)).
 
     C is :func:`c_step_xi`'s, at which ``dE/dC`` vanishes (returned as 0.0): E and dE/dB as
@@ -102,10 +98,8 @@ def reduced_objective(B, n, Pi, Xi, w2, reg, ridge=0.0):
     its dE/dC (a quarter of its products). E is evaluated at that C, not read from the
     normal equations (``(w2 - <A'W, c>) / 2 + ...`` holds only where they are solved
     exactly: on shark's noise-free W of rank 5 it went 1e-11 below the true E, and the line
-    search followed rounding). ``ridge`` (scalar) is added to the weights of C alone, and
-    its term ``ridge |C|^2 / 2`` to E, so that C is the minimum-norm one where the normal
-    matrix is singular and (C, E) stay smooth functions of B."""
-    C = c_step_xi(B, n, Xi, reg + ridge)
+    search followed rounding)."""
+    C = c_step_xi(B, n, Xi, reg)
     r = B.shape[1]
     if Xi.shape[1] <= 9 * r:
         Xs = B @ C.T
@@ -117,8 +111,7 @@ def reduced_objective(B, n, Pi, Xi, w2, reg, ridge=0.0):
         gB = np.matmul(frame_hessians(C, Pi, np.zeros(r)), B[:, :, None])[:, :, 0]
         data = 0.5 * max(w2 - 2.0 * float(np.vdot(B, XiC)) + float(np.vdot(B, gB)), 0.0)
         gB -= XiC
-    sC = np.sum(C ** 2, axis=0)
-    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + sC) + ridge * np.sum(sC))
+    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
     return C, (E, data, gB + B * reg, 0.0)
 
 
@@ -482,8 +475,11 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
     return B, C, rel, n_iter
 
 
-#: curvature pairs kept by L-BFGS
-MEMORY = 20
+#: curvature pairs kept by L-BFGS (as many as the iterations between alignments: with the
+#: pipeline's rotations, 5 / 10 / 20 / 40 pairs take drink 0.70 / 0.76 / 0.83 / 0.93 s,
+#: pickup 0.21 / 0.22 / 0.23 / 0.25 s, shark 162 / 112 / 121 / 192 iterations;
+#: docs/shape_stage.md)
+MEMORY = 10
 
 
 def _add_pair(S, Y, s_, y_):
