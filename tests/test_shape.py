@@ -479,3 +479,37 @@ def test_reduced_objective_is_the_objective_at_the_c_step(P, r):
     L = np.linalg.cholesky(np.eye(13) + (lambda A: A @ A.transpose(0, 2, 1))(
         rng.standard_normal((5, 13, 13))))
     assert np.allclose(factors._lower_inverse(L) @ L, np.eye(13), atol=1e-10)
+
+
+def test_alignment_change_of_basis_and_the_minimiser():
+    """``factors._aligned`` returns the SVD-aligned factors of the same X# with the change
+    of basis that maps the old factors onto them (``B M``) and its inverse transpose (the
+    map of gradients); and minimise's L-BFGS reaches the same minimiser with its memory
+    carried through the alignments as with scipy's L-BFGS-B on the same reduced objective."""
+    import scipy.optimize
+    from nrsfm.stages.shape import factors
+    rng = np.random.default_rng(11)
+    B, C = rng.standard_normal((12, 4)), rng.standard_normal((15, 4))
+    Ba, keep, M, Mt = factors._aligned(B, C, None)
+    Bs, Cs = factors.svd_align(B, C)
+    assert keep == 4 and np.allclose(Ba, Bs, atol=1e-12)
+    assert np.allclose(B @ M, Ba, atol=1e-12) and np.allclose(M.T @ Mt, np.eye(4), atol=1e-12)
+    seq = data_tools.make_synthetic(F=12, P=8, K=2, motion="random", seed=3)
+    Rf = seq.rotations[:, :2]
+    Pi = Rf.transpose(0, 2, 1) @ Rf
+    n = factors.viewing_directions(Rf)
+    Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(12, 2, 8)).reshape(12, 24)
+    w2 = float(np.sum(seq.W ** 2))
+    reg = np.array([0.0, 0.3, 0.6, 1.0]) * w2 ** 0.5 * 0.05
+
+    def reduced(Bx):
+        return factors.reduced_objective(Bx, n, Pi, Xi, w2, reg)
+
+    B1, C1, rel, it = factors.minimise(rng.standard_normal((12, 4)), reduced, Pi, reg,
+                                       1e-10, 5000)
+    assert rel <= 1e-10
+    E1 = reduced(B1)[1][0]
+    ref = scipy.optimize.minimize(lambda z: (lambda v: (v[0], v[2].ravel()))(
+        reduced(z.reshape(12, 4))[1]), B1.ravel() + 1e-3 * rng.standard_normal(48),
+        jac=True, method="L-BFGS-B", options=dict(gtol=1e-12, ftol=0, maxiter=5000))
+    assert E1 <= ref.fun * (1 + 1e-10)
