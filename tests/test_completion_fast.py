@@ -214,3 +214,18 @@ def test_reconstruct_warns_when_the_completion_stops_at_its_cap():
     with pytest.warns(RuntimeWarning, match=r"^W-completion-cap: .* iteration cap \(500\) before converging"):
         r = nrsfm.reconstruct(Wm, 1, settings=s)
     assert not r.completion.converged and r.completion.n_iter == 500
+
+
+def test_mask_groups_are_numpy_unique_of_the_packed_rows():
+    """The observation patterns and their index are those of ``np.unique`` on the packed
+    rows (its order, its first occurrences), on masks with repeated patterns and more than
+    64 frames (several 8-byte words per row)."""
+    rng = np.random.default_rng(4)
+    for F, P in ((5, 7), (100, 300), (131, 50)):
+        obs = rng.random((F, P)) < 0.9
+        obs[:, 1::2] = obs[:, 0:2 * (P // 2):2]
+        patterns, index = mask_groups(obs)
+        _, first, inv = np.unique(np.packbits(obs.T, axis=1), axis=0, return_index=True,
+                                  return_inverse=True)
+        assert np.array_equal(patterns, obs[:, first].T)
+        assert np.array_equal(index, inv.ravel()) and np.array_equal(patterns[index], obs.T)
