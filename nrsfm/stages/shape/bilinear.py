@@ -40,7 +40,8 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   the closed-form rank-K start (r = K) or, for r > K, the leading singular vectors of the
   closed-form fit with a share of its residual, re-aligned every few iterations to the
   SVD-aligned factors of the same X# (L-BFGS's memory carried through that change of
-  basis). Each iteration
+  basis). Every weight carries a ridge of ``RIDGE`` (1e-12 in normalised units), so that
+  along directions W leaves open the answer is the one of least norm. Each iteration
   is O(F P r) with no SVD and no (F x F) or (2F x 3F) block matrix; the set-up takes one
   thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
   when the relative gradient norm is below ``gtol``.
