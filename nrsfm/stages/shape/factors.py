@@ -93,26 +93,14 @@ def c_step_xi(B, n, Xi, reg):
 def reduced_objective(B, n, Pi, Xi, w2, reg):
     """The reduced objective ``f(B) = min_C E(B, C)`` of (*): (C, (E, data, dE/dB, 0.0)).
 
-    C is :func:`c_step_xi`'s, at which ``dE/dC`` vanishes (returned as 0.0): E and dE/dB as
-    :func:`objective` computes them (X# formed, or in factored form where 3P > 9r), without
-    its dE/dC (a quarter of its products). E is evaluated at that C, not read from the
-    normal equations (``(w2 - <A'W, c>) / 2 + ...`` holds only where they are solved
-    exactly: on shark's noise-free W of rank 5 it went 1e-11 below the true E, and the line
-    search followed rounding)."""
+    C is :func:`c_step_xi`'s, at which ``dE/dC`` vanishes (returned as 0.0): E and dE/dB
+    are :func:`objective`'s without its dE/dC (a quarter of its products). E is evaluated at
+    that C, not read from the normal equations (``(w2 - <A'W, c>) / 2 + ...`` holds only
+    where they are solved exactly: on shark's noise-free W of rank 5 it went 1e-11 below the
+    true E, and the line search followed rounding)."""
     C = c_step_xi(B, n, Xi, reg)
-    r = B.shape[1]
-    if Xi.shape[1] <= 9 * r:
-        Xs = B @ C.T
-        PX = project(Pi, Xs)
-        data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
-        gB = (PX - Xi) @ C
-    else:
-        XiC = Xi @ C
-        gB = np.matmul(frame_hessians(C, Pi, np.zeros(r)), B[:, :, None])[:, :, 0]
-        data = 0.5 * max(w2 - 2.0 * float(np.vdot(B, XiC)) + float(np.vdot(B, gB)), 0.0)
-        gB -= XiC
-    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
-    return C, (E, data, gB + B * reg, 0.0)
+    E, data, gB, _ = objective(B, C, Pi, Xi, w2, reg, grad_C=False)
+    return C, (E, data, gB, 0.0)
 
 
 def project(Pi, Xs):
@@ -121,8 +109,9 @@ def project(Pi, Xs):
     return np.matmul(Pi, Xs.reshape(F, 3, -1)).reshape(F, -1)
 
 
-def objective(B, C, Pi, Xi, w2, reg):
-    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC).
+def objective(B, C, Pi, Xi, w2, reg, grad_C=True):
+    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC; dE/dC None when not
+    ``grad_C``).
 
     With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
     <X_f, Pi_f X_f>`` (``X_init_f = R_f'W_f``, ``Pi_f = R_f'R_f``), and
@@ -143,11 +132,13 @@ def objective(B, C, Pi, Xi, w2, reg):
         G = PX - Xi
         data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
         E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
-        return E, data, G @ C + B * reg, G.T @ B + C * reg
+        return E, data, G @ C + B * reg, (G.T @ B + C * reg) if grad_C else None
     XiC = Xi @ C                                               # (F, r)
     HB = np.matmul(frame_hessians(C, Pi, np.zeros(r)), B[:, :, None])[:, :, 0]
     data = 0.5 * max(w2 - 2.0 * float(np.vdot(B, XiC)) + float(np.vdot(B, HB)), 0.0)
     E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
+    if not grad_C:
+        return E, data, HB - XiC + B * reg, None
     N = _normal_matrix(B, Pi)                                  # (3r, 3r), rows (i, a)
     NC = (N @ C.T.reshape(3 * r, -1)).reshape(r, -1).T          # (3P, r)
     return E, data, HB - XiC + B * reg, NC - Xi.T @ B + C * reg
@@ -260,11 +251,19 @@ def svd_align(B, C):
     every non-decreasing reg: ``B = U S^1/2``, ``C = V S^1/2`` with ``X# = U S V'`` (Iglesias,
     Olsson, Oernhag, ECCV 2020, Sec. 3), computed from the QR factors of B and C (an
     r x r SVD). Never raises E; the largest singular value goes to the smallest weight."""
+    Qb, _, U, s, Qc, Vt = _product_svd(B, C)
+    q = np.sqrt(s)
+    return (Qb @ U) * q, (Qc @ Vt.T) * q
+
+
+def _product_svd(B, C):
+    """``(Qb, Rb, U, s, Qc, V')``: the thin QR factors of B and C and the SVD ``U s V'``
+    of ``Rb Rc'`` (so that ``B C' = (Qb U) s (Qc V)'``), shared by :func:`svd_align` and
+    :func:`_aligned`."""
     Qb, Rb = np.linalg.qr(B)
     Qc, Rc = np.linalg.qr(C)
     U, s, Vt = np.linalg.svd(Rb @ Rc.T)
-    q = np.sqrt(s)
-    return (Qb @ U) * q, (Qc @ Vt.T) * q
+    return Qb, Rb, U, s, Qc, Vt
 
 
 def relative_gradient(B, C, gB, gC):
@@ -278,9 +277,7 @@ def _aligned(B, C, prune_rtol):
     :keep]`` (the last columns dropped at or below ``prune_rtol`` of the largest singular
     value of X#); M and M^-T are None where a singular value is at rounding level (no
     transport of the curvature pairs)."""
-    Qb, Rb = np.linalg.qr(B)
-    Qc, Rc = np.linalg.qr(C)
-    U, s, _ = np.linalg.svd(Rb @ Rc.T)
+    Qb, Rb, U, s, _, _ = _product_svd(B, C)
     q = np.sqrt(s)
     keep = B.shape[1]
     if prune_rtol is not None:
@@ -444,6 +441,7 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
     e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
         _, Linv = frame_preconditioner(C, Pi, reg[:B.shape[1]])
+        failed = False                              # a line search found no decrease
         for _ in range(min(segment, max_iter - n_iter)):
             d = _two_loop(vals[2], S, Y, Linv)
             slope = float(np.vdot(vals[2], d))
@@ -453,6 +451,7 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
                 slope = float(np.vdot(vals[2], d))
             step = _line_search(reduced, B, d, vals[0], slope, e_tol) if slope < 0 else None
             if step is None:
+                failed = True
                 break
             _add_pair(S, Y, step[0] - B, step[2][2] - vals[2])
             B, C, vals = step
@@ -462,15 +461,13 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
                 on_iterate(B, C, vals)
             if rel <= gtol:
                 break
-        else:
-            step = True
         r = B.shape[1]
         B, keep, M, Mt = _aligned(B, C, prune_rtol)
         C, vals = reduced(B)
         rel = relative_gradient(B, C, vals[2], vals[3])
-        if step is None and not S:                  # no descent possible (rounding)
+        if failed and not S:                        # no descent possible (rounding)
             break
-        carry = step is not None and keep == r and M is not None
+        carry = not failed and keep == r and M is not None
         S, Y = ([s_ @ M for s_ in S], [y_ @ Mt for y_ in Y]) if carry else ([], [])
     return B, C, rel, n_iter
 
