@@ -31,6 +31,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import lapack
 from scipy.optimize import least_squares, minimize
 
 from .relaxation import penalized_gram, triplets_from_gram
@@ -43,6 +44,70 @@ __all__ = ["triplet_residuals", "triplet_cost", "triplet_gradient", "refine_trip
 # ------------------------------------------------------------------------- refinement
 _EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)
 LAM0 = 1e-3      # initial LM damping, times max diag(J'J)
+
+
+class _Frames:
+    """What every evaluation of Dai's cost on one ``M_hat`` shares: its x and y rows
+    ``m1``, ``m2`` (F, 3K) as contiguous arrays, stacked per frame for the Jacobian, and
+    the frame weights (``sqrt_w`` in the residuals, ``w`` in ``J'r``)."""
+
+    def __init__(self, M_hat, weights=None):
+        M = np.asarray(M_hat, float)
+        self.m1, self.m2 = np.ascontiguousarray(M[0::2]), np.ascontiguousarray(M[1::2])
+        self.U = np.stack([self.m1, self.m2], axis=2)[:, None]          # (F, 1, 3K, 2)
+        self.w = None if weights is None else np.asarray(weights, float)
+        self.sqrt_w = None if weights is None else np.sqrt(self.w)
+
+    def products(self, G):
+        """(a, b, |a|^2, |b|^2, a.b) per frame: ``a = m1 G``, ``b = m2 G`` (|a|^2 floored
+        at a tiny value)."""
+        a, b = self.m1 @ G, self.m2 @ G
+        na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
+        return a, b, na, np.einsum("fi,fi->f", b, b), np.einsum("fi,fi->f", a, b)
+
+    def residuals(self, p):
+        """The 2F residuals ``[1 - |b|^2/|a|^2, 2 a.b/|a|^2]`` (times sqrt(w)) of products
+        ``p``."""
+        a, b, na, nb, ab = p
+        r1, r2 = 1.0 - nb / na, 2.0 * ab / na
+        if self.sqrt_w is not None:
+            r1, r2 = r1 * self.sqrt_w, r2 * self.sqrt_w
+        r = np.empty(2 * a.shape[0])
+        r[0::2], r[1::2] = r1, r2
+        return r
+
+    def jacobian(self, p):
+        """The Jacobian (2F, 9K) of the residuals with respect to ``G.ravel()``.
+
+        d|a|^2/dG = 2 m1 a', d|b|^2/dG = 2 m2 b', d(a.b)/dG = m1 b' + m2 a', so frame f's
+        two rows are  J1 = m1 (c1 a)' + m2 (c2 b)'  and  J2 = m1 (c3 b + c4 a)' + m2 (c3 a)'
+        with c1 = 2|b|^2/|a|^4, c2 = -2/|a|^2, c3 = 2/|a|^2, c4 = -4 a.b/|a|^4: per frame,
+        [m1 m2] (3K x 2) times a 2 x 3 matrix per row, one batched matrix product."""
+        a, b, na, nb, ab = p
+        F = a.shape[0]
+        inv = 1.0 / na
+        c1, c2, c3, c4 = 2.0 * nb * inv * inv, -2.0 * inv, 2.0 * inv, -4.0 * ab * inv * inv
+        if self.sqrt_w is not None:
+            w = self.sqrt_w
+            c1, c2, c3, c4 = c1 * w, c2 * w, c3 * w, c4 * w
+        C = np.empty((F, 2, 2, 3))
+        C[:, 0, 0], C[:, 0, 1] = c1[:, None] * a, c2[:, None] * b
+        C[:, 1, 0], C[:, 1, 1] = c3[:, None] * b + c4[:, None] * a, c3[:, None] * a
+        return np.matmul(self.U, C).reshape(2 * F, self.m1.shape[1] * a.shape[1])
+
+    def gradient(self, p):
+        """``J' r`` (3K, 3) without forming J: ``m1' A + m2' B`` with per-frame rows
+        ``A = r1 c1 a + r2 (c3 b + c4 a)``, ``B = r1 c2 b + r2 c3 a`` (the coefficients of
+        :meth:`jacobian`; w, not its square root, in the product)."""
+        a, b, na, nb, ab = p
+        inv = 1.0 / na
+        r1, r2 = 1.0 - nb * inv, 2.0 * ab * inv
+        if self.w is not None:
+            r1, r2 = r1 * self.w, r2 * self.w
+        c1, c2, c3, c4 = 2.0 * nb * inv * inv, -2.0 * inv, 2.0 * inv, -4.0 * ab * inv * inv
+        A = (r1 * c1 + r2 * c4)[:, None] * a + (r2 * c3)[:, None] * b
+        B = (r1 * c2)[:, None] * b + (r2 * c3)[:, None] * a
+        return self.m1.T @ A + self.m2.T @ B
 
 
 def triplet_residuals(G, M_hat, weights=None, jac=False):
@@ -61,44 +126,10 @@ def triplet_residuals(G, M_hat, weights=None, jac=False):
     -------
     r : (2F,) ndarray, and J if ``jac``
     """
-    M, m1, m2, a, b, na, nb, ab = _frame_products(G, M_hat)
-    r1 = 1.0 - nb / na
-    r2 = 2.0 * ab / na
-    w = None if weights is None else np.sqrt(np.asarray(weights, float))
-    if w is not None:
-        r1, r2 = r1 * w, r2 * w
-    r = np.empty(2 * M.shape[0] // 2)
-    r[0::2], r[1::2] = r1, r2
-    if not jac:
-        return r
-    # d|a|^2/dG = 2 m1 a', d|b|^2/dG = 2 m2 b', d(a.b)/dG = m1 b' + m2 a', so frame f's
-    # two rows are  J1 = m1 (c1 a)' + m2 (c2 b)'  and  J2 = m1 (c3 b + c4 a)' + m2 (c3 a)'
-    # with c1 = 2|b|^2/|a|^4, c2 = -2/|a|^2, c3 = 2/|a|^2, c4 = -4 a.b/|a|^4: per frame,
-    # [m1 m2] (3K x 2) times a 2 x 3 matrix per row, one batched matrix product
-    F = M.shape[0] // 2
-    inv = 1.0 / na
-    c1, c2, c3, c4 = 2.0 * nb * inv * inv, -2.0 * inv, 2.0 * inv, -4.0 * ab * inv * inv
-    if w is not None:
-        c1, c2, c3, c4 = c1 * w, c2 * w, c3 * w, c4 * w
-    C = np.empty((F, 2, 2, 3))
-    C[:, 0, 0], C[:, 0, 1] = c1[:, None] * a, c2[:, None] * b
-    C[:, 1, 0], C[:, 1, 1] = c3[:, None] * b + c4[:, None] * a, c3[:, None] * a
-    U = np.stack([m1, m2], axis=2)[:, None]                    # (F, 1, 3K, 2)
-    J = np.matmul(U, C).reshape(2 * F, G.size)
-    return r, J
-
-
-def _frame_products(G, M_hat):
-    """(M, m1, m2, a, b, |a|^2, |b|^2, a.b) per frame: ``a = m1 G``, ``b = m2 G`` with m1,
-    m2 the x and y rows of M_hat (|a|^2 floored at a tiny value); shared by the residuals
-    and the gradient of Dai's cost."""
-    M = np.asarray(M_hat, float)
-    m1, m2 = M[0::2], M[1::2]
-    a, b = m1 @ G, m2 @ G
-    na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
-    nb = np.einsum("fi,fi->f", b, b)
-    ab = np.einsum("fi,fi->f", a, b)
-    return M, m1, m2, a, b, na, nb, ab
+    frames = _Frames(M_hat, weights)
+    p = frames.products(np.asarray(G, float))
+    r = frames.residuals(p)
+    return (r, frames.jacobian(p)) if jac else r
 
 
 def triplet_cost(G, M_hat, weights=None):
@@ -108,18 +139,10 @@ def triplet_cost(G, M_hat, weights=None):
 
 
 def triplet_gradient(G, M_hat, weights=None):
-    """``J' r`` (half the gradient of Dai's cost), (3K, 3), without forming the Jacobian:
-    ``m1' A + m2' B`` with per-frame rows ``A = r1 c1 a + r2 (c3 b + c4 a)``,
-    ``B = r1 c2 b + r2 c3 a`` (the coefficients of :func:`triplet_residuals`)."""
-    M, m1, m2, a, b, na, nb, ab = _frame_products(G, M_hat)
-    inv = 1.0 / na
-    r1, r2 = 1.0 - nb * inv, 2.0 * ab * inv
-    if weights is not None:                  # sqrt(w) in the residual and in the Jacobian
-        r1, r2 = r1 * weights, r2 * weights
-    c1, c2, c3, c4 = 2.0 * nb * inv * inv, -2.0 * inv, 2.0 * inv, -4.0 * ab * inv * inv
-    A = (r1 * c1 + r2 * c4)[:, None] * a + (r2 * c3)[:, None] * b
-    B = (r1 * c2)[:, None] * b + (r2 * c3)[:, None] * a
-    return m1.T @ A + m2.T @ B
+    """``J' r`` (half the gradient of Dai's cost), (3K, 3), without forming the Jacobian
+    (:meth:`_Frames.gradient`)."""
+    frames = _Frames(M_hat, weights)
+    return frames.gradient(frames.products(np.asarray(G, float)))
 
 
 def _normalise_triplet(G, M_hat):
@@ -129,20 +152,33 @@ def _normalise_triplet(G, M_hat):
     return G / s if s > 0 else G
 
 
+def _damped_step(A, D, lam, grad):
+    """``-(A + lam diag(D))^-1 grad`` by one Cholesky solve (LAPACK ``posv``; A = J'J is
+    positive semi-definite and D > 0), or None where rounding leaves it indefinite."""
+    H = A.copy()
+    H.flat[::H.shape[0] + 1] += lam * D
+    _, step, info = lapack.dposv(H, -grad, lower=1, overwrite_a=1)
+    return step if info == 0 else None
+
+
 def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
     """Levenberg-Marquardt on Dai's residuals (normal equations, Nielsen's damping rule).
 
     ``reuse``: after an accepted step shorter than ``reuse`` times |G| that lowered the
     cost by less than ``reuse`` of it, keep J'J and recompute only the gradient
-    (:func:`triplet_gradient`, a fifth of the time of the Jacobian and J'J): near a
+    (:meth:`_Frames.gradient`, a fifth of the time of the Jacobian and J'J): near a
     minimum of nonzero cost J'J hardly changes, the steps stay Gauss-Newton steps to first
     order and the iterate converges to the same point (the gradient is exact); where the
-    cost still falls fast (a zero-residual minimum, quadratic convergence) J'J is fresh. Returns (G, cost, iterations). About 0.3 ms per iteration at pickup's size,
-    ten times faster than MINPACK through scipy (whose per-call overhead dominates).
+    cost still falls fast (a zero-residual minimum, quadratic convergence) J'J is fresh.
+    The Jacobian of an accepted point is built from the products its cost was computed
+    from. Returns (G, cost, iterations). About 0.3 ms per iteration at pickup's size, ten
+    times faster than MINPACK through scipy (whose per-call overhead dominates).
     """
     shape = G0.shape
+    frames = _Frames(M, weights)
     g = G0.ravel().copy()
-    r, J = triplet_residuals(G0, M, weights, jac=True)
+    p = frames.products(G0)
+    r, J = frames.residuals(p), frames.jacobian(p)
     cost = float(r @ r)
     A, grad = J.T @ J, J.T @ r
     lam = lam0 * float(np.max(np.diag(A))) if A.size else 1.0
@@ -151,16 +187,16 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
     for it in range(1, max_iter + 1):
         D = np.diag(A).copy()
         D = np.maximum(D, 1e-12 * max(D.max(), 1e-300))
-        try:
-            step = np.linalg.solve(A + lam * np.diag(D), -grad)
-        except np.linalg.LinAlgError:
+        step = _damped_step(A, D, lam, grad)
+        if step is None:
             lam *= nu
             nu *= 2.0
             if nu > 1e15 or lam > 1e100:
                 break
             continue
         g_new = g + step
-        r_new = triplet_residuals(g_new.reshape(shape), M, weights)
+        p_new = frames.products(g_new.reshape(shape))
+        r_new = frames.residuals(p_new)
         c_new = float(r_new @ r_new)
         if np.isfinite(c_new) and c_new < cost:
             pred = -(step @ grad) - 0.5 * step @ (A @ step)
@@ -168,11 +204,11 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
             done = (cost - c_new) <= tol * cost or c_new < 1e-28
             keep = reuse is not None and (cost - c_new) <= reuse * cost and \
                 np.linalg.norm(step) <= reuse * np.linalg.norm(g_new)
-            g, cost = g_new, c_new
+            g, cost, r = g_new, c_new, r_new
             if keep:
-                grad = triplet_gradient(g.reshape(shape), M, weights).ravel()
+                grad = frames.gradient(p_new).ravel()
             else:
-                r, J = triplet_residuals(g.reshape(shape), M, weights, jac=True)
+                J = frames.jacobian(p_new)
                 A, grad = J.T @ J, J.T @ r
             lam *= max(1.0 / 3.0, 1.0 - (2.0 * min(rho, 1.0) - 1.0) ** 3)
             nu = 2.0
