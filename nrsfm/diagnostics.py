@@ -342,11 +342,14 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
         # cameras that jump by more than 90 degrees leave the depth sign of a frame to the
         # smoothness rule, which cannot decide it; alone that is the orthographic mirror
         # ambiguity (a random camera per frame: e3d .005, docs/rotation_stage.md section 9),
-        # with other flags or a W of rank below 3K a sign of wrong rotations (a deforming
-        # planar object: e3d .73)
+        # with other flags, or a W of rank below 3K whose triplet does not fit it at the
+        # noise level, a sign of wrong rotations (a deforming planar object: Dai's cost
+        # 8e5 x its prediction, e3d .73; shark on a random camera, rank 5 < 9 and an exact
+        # triplet, e3d 1e-5: the mirror ambiguity alone, section 12)
         jumps = dict(n=int(rotation_stage.sign_from_smoothness.sum()), F=F,
                      frac_max=SIGN_FRACTION_MAX)
-        (flags.append(text("W-camera-jumps", **jumps)) if flags or not full_rank else
+        wrong = flags or (not full_rank and ratio > COST_RATIO_MAX)
+        (flags.append(text("W-camera-jumps", **jumps)) if wrong else
          notes.append(text("N-camera-jumps", **jumps)))
     sig["looks_transposed"] = False
     if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):

@@ -174,12 +174,13 @@ CATALOG = {
         "warning", _FLAG, f"{_DIAG}, `_rotation_signals`",
         "the estimated cameras jump between frames: {n} of {F} frames had their depth sign "
         "set by motion smoothness (warned above {frac_max:.0%}), and the run has other "
-        "warnings or W has fewer than 3K directions: together a sign of wrong rotations; "
-        "check that the frames are in time order",
+        "warnings or W has fewer than 3K directions with a triplet that does not fit it: "
+        "together a sign of wrong rotations; check that the frames are in time order",
         "`smoothness_sign_fraction` (frames whose depth sign the motion-smoothness rule "
         "changed) above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, and another diagnostic "
-        "flags the run or the numerical rank of W is below 3K; otherwise it is the note "
-        "`N-camera-jumps`",
+        "flags the run, or the numerical rank of W is below 3K and Dai's cost of the best "
+        "triplet is above `COST_RATIO_MAX` = {COST_RATIO_MAX} x its noise prediction; "
+        "otherwise it is the note `N-camera-jumps`",
         "consecutive cameras differ by more than 90 degrees in many frames while other "
         "signals say the rotations are unreliable (a deforming planar object, rank 2K: e3d "
         ".73): the rotations are likely wrong, or the frames are not in time order.",
@@ -193,8 +194,9 @@ CATALOG = {
         "not tell a shape from its mirror image in depth, so each of these frames may show "
         "the mirror image; nothing else in the run looks wrong; no action needed if the "
         "camera does jump",
-        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, W has "
-        "3K directions and no other diagnostic flags the run",
+        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, no "
+        "other diagnostic flags the run, and W has 3K directions or its best triplet fits "
+        "it at the noise level (shark on a random camera: rank 5 < 9, e3d 1e-5)",
         "the cameras and shapes are right up to the depth sign of each frame (a random camera"
         " per frame on re-projected MoCap: e3d .005-.03, which measures up to a reflection), "
         "and e_R counts the mirrored frames as errors.",

@@ -172,6 +172,21 @@ def test_random_cameras_give_a_note_not_a_warning():
     assert nrsfm.e3d(res.shapes, seq.shapes) < 1e-6
 
 
+def test_rank_deficient_w_on_random_cameras_with_an_exact_triplet_is_notes_only():
+    """A rigid body plus a planar deformation (W of rank 5 < 3K = 6) seen by a camera that
+    jumps: the triplet fits W exactly, so the jumps are the mirror ambiguity and the rank
+    a note (as without the jumps); the deforming planar object, whose triplet does not fit,
+    still warns (test above)."""
+    seq = data_tools.make_rank_deficient(motion="random", seed=0)
+    res, caught = _run(seq.W, 2)
+    assert caught == [] and not res.diagnostics.flagged
+    notes = res.diagnostics.notes
+    assert any(n.startswith("N-camera-jumps: ") for n in notes)
+    assert any(n.startswith("N-rank-deficient") for n in notes)
+    assert res.diagnostics.signals["numerical_rank"] == 5
+    assert nrsfm.e3d(res.shapes, seq.shapes) < 1e-6
+
+
 def test_narrow_camera_path_warns_depth_undetermined():
     """Shapes re-projected by a camera that turns 20 degrees, 1 % noise: the depth of the
     deformation is the prior's, and the run says so (given rotations too); without noise
