@@ -12,6 +12,8 @@ std of W. Columns are methods, each a callable ``method(seq) -> (shapes, rotatio
 ``select:<solver>`` the same with the shape solved in full for both rotation candidates
                    and the lower objective kept (``ShapeSettings.select_rotations=True``;
                    ``--select``).
+``full:bmm``       the BMM baseline through the whole pipeline
+                   (``nrsfm.reconstruct(W, K, method="bmm")``; ``--bmm``).
 
 New methods: add a callable to :data:`METHODS` (or call :func:`register`). A ``*`` after a
 figure marks a run that raised an ``nrsfm.NRSfMWarning``. K is the paper's K for MoCap
@@ -76,6 +78,12 @@ def full_pipeline(solver, select=False):
     return run
 
 
+def bmm_pipeline(seq):
+    """Method: the BMM baseline (its rotations and its nuclear-norm shape stage)."""
+    rec = nrsfm.reconstruct(seq.W, seq.K, method="bmm")
+    return rec.shapes, rec.rotations
+
+
 def evaluate(method, seq):
     """(e3d, e_R or None, warned, seconds) of one method on one sequence."""
     t0 = time.perf_counter()
@@ -135,6 +143,8 @@ def parse_args(argv=None):
     ap.add_argument("--select", action="store_true",
                     help="also run the pipeline choosing between rotation candidates by the "
                          "shape objective (select:<solver>)")
+    ap.add_argument("--bmm", action="store_true",
+                    help="also run the BMM baseline through the pipeline (full:bmm)")
     ap.add_argument("--seed", type=int, default=0)
     return ap.parse_args(argv)
 
@@ -147,6 +157,8 @@ def main(argv=None):
             register(f"full:{s}", full_pipeline(s))
         if args.select:
             register(f"select:{s}", full_pipeline(s, select=True))
+    if args.bmm:
+        register("full:bmm", bmm_pipeline)
     names = list(METHODS)
     spec = [(q, p, z) for q in args.sequences for p in args.paths for z in args.noise]
     rows = dt.validation_set(spec, loader(args.data, args.external_data), seed=args.seed)

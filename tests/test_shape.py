@@ -513,3 +513,26 @@ def test_alignment_change_of_basis_and_the_minimiser():
         reduced(z.reshape(12, 4))[1]), B1.ravel() + 1e-3 * rng.standard_normal(48),
         jac=True, method="L-BFGS-B", options=dict(gtol=1e-12, ftol=0, maxiter=5000))
     assert E1 <= ref.fun * (1 + 1e-10)
+
+
+def test_bilinear_best_start_keeps_the_lower_objective_of_both_starts():
+    """``init="best"``: solved from the closed form and from the ADMM's answer, the lower E
+    kept and both recorded; each of the starts is what its name says (the same data, the
+    starts' own objectives)."""
+    seq = data_tools.make_synthetic(F=40, P=12, K=2, motion="smooth", seed=5)
+    W = dt_noise(seq.W)
+    runs = {init: optimize_shapes_bilinear(W, seq.rotations, 2, init=init)
+            for init in ("closed_form", "admm", "best")}
+    best = runs["best"]
+    objs = best.params["objectives_of_starts"]
+    assert objs["closed_form"] == pytest.approx(runs["closed_form"].objective, rel=1e-12)
+    assert objs["admm"] == pytest.approx(runs["admm"].objective, rel=1e-12)
+    assert best.objective == min(objs.values())
+    assert best.params["init"] == "best"
+    assert best.params["init_kept"] in ("closed_form", "admm")
+    with pytest.raises(ValueError, match="init"):
+        optimize_shapes_bilinear(W, seq.rotations, 2, init="svd")
+
+
+def dt_noise(W):
+    return data_tools.add_noise(W, 0.05, seed=0)
