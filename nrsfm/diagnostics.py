@@ -345,7 +345,7 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
         # with other flags, or a W of rank below 3K whose triplet does not fit it at the
         # noise level, a sign of wrong rotations (a deforming planar object: Dai's cost
         # 8e5 x its prediction, e3d .73; shark on a random camera, rank 5 < 9 and an exact
-        # triplet, e3d 1e-5: the mirror ambiguity alone, section 12)
+        # triplet, e3d 3e-8: the mirror ambiguity alone, section 12)
         jumps = dict(n=int(rotation_stage.sign_from_smoothness.sum()), F=F,
                      frac_max=SIGN_FRACTION_MAX)
         wrong = flags or (not full_rank and ratio > COST_RATIO_MAX)

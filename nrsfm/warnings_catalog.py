@@ -196,7 +196,7 @@ CATALOG = {
         "camera does jump",
         "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, no "
         "other diagnostic flags the run, and W has 3K directions or its best triplet fits "
-        "it at the noise level (shark on a random camera: rank 5 < 9, e3d 1e-5)",
+        "it at the noise level (shark on a random camera: rank 5 < 9, e3d 3e-8)",
         "the cameras and shapes are right up to the depth sign of each frame (a random camera"
         " per frame on re-projected MoCap: e3d .005-.03, which measures up to a reflection), "
         "and e_R counts the mirrored frames as errors.",

@@ -520,7 +520,7 @@ def test_bilinear_best_start_keeps_the_lower_objective_of_both_starts():
     kept and both recorded; each of the starts is what its name says (the same data, the
     starts' own objectives)."""
     seq = data_tools.make_synthetic(F=40, P=12, K=2, motion="smooth", seed=5)
-    W = dt_noise(seq.W)
+    W = data_tools.add_noise(seq.W, 0.05, seed=0)
     runs = {init: optimize_shapes_bilinear(W, seq.rotations, 2, init=init)
             for init in ("closed_form", "admm", "best")}
     best = runs["best"]
@@ -532,7 +532,3 @@ def test_bilinear_best_start_keeps_the_lower_objective_of_both_starts():
     assert best.params["init_kept"] in ("closed_form", "admm")
     with pytest.raises(ValueError, match="init"):
         optimize_shapes_bilinear(W, seq.rotations, 2, init="svd")
-
-
-def dt_noise(W):
-    return data_tools.add_noise(W, 0.05, seed=0)

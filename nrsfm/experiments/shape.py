@@ -31,7 +31,8 @@ import time
 
 import numpy as np
 
-__all__ = ["COLUMNS", "DEFAULT_VARIANTS", "TITLE", "run_shape", "shape_rows", "shape_table", "shape_tasks"]
+__all__ = ["COLUMNS", "DEFAULT_VARIANTS", "TITLE", "run_shape", "shape_rows", "shape_table",
+           "shape_tasks"]
 
 TITLE = "Shape stage: e3d per formulation (issue 22)"
 

@@ -128,7 +128,8 @@ class BilinearSettings(SolverSettings):
         ``best`` reaches a lower E on 3 (stretch: e3d .0152 -> .0126; ``back`` on a smooth
         180-degree path: E 8 % lower, e3d .0445 -> .0221), at 2.5 - 4 x the time
         (``docs/shape_stage.md``). The rank-K fit's uniqueness is tested (and warned
-        about) whatever the start.
+        about) whatever the start. With ``start`` given (:func:`solve_bilinear`) the fit
+        starts from it, whatever ``init``.
     gtol : float
         Stop when the relative gradient norm is at most gtol.
     max_iter : int
