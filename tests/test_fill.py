@@ -96,15 +96,22 @@ def _ref_kabsch(A, B):
 
 def _ref_candidates(X, observed, p):
     """p's candidate neighbours ranked by mean distance over the frames both are seen
-    (nearest first; only those seen with p in 3 frames or more)."""
+    (nearest first; only those seen with p in 3 frames or more), from the ``fill._POOL``
+    nearest by mean distance over p's sampled frames among the ``fill._POOL + 1``
+    points nearest to p in each of them."""
     seen = np.flatnonzero(observed[:, p])
     sample = seen[np.linspace(0, seen.size - 1, min(fill._SAMPLE, seen.size)).astype(int)]
     d = np.linalg.norm(X[sample] - X[sample][:, :, p:p + 1], axis=1)
-    both = observed[sample]
-    coarse = np.where(both, d, 0).sum(0) / np.maximum(both.sum(0), 1)
-    coarse[(both.sum(0) == 0) | (np.arange(X.shape[2]) == p)] = np.inf
-    pool = np.argsort(coarse, kind="stable")[:fill._POOL]
-    pool = pool[np.isfinite(coarse[pool])]
+    near = set()
+    for i, f in enumerate(sample):
+        ids = np.flatnonzero(observed[f])
+        near.update(ids[np.argsort(d[i, ids], kind="stable")[:fill._POOL + 1]].tolist())
+    near = np.array(sorted(near - {p}), int)
+    both = observed[sample][:, near]
+    coarse = np.where(both, d[:, near], 0).sum(0) / np.maximum(both.sum(0), 1)
+    coarse[both.sum(0) == 0] = np.inf
+    pool = near[np.argsort(coarse, kind="stable")[:fill._POOL]]
+    pool = pool[np.isfinite(coarse[np.searchsorted(near, pool)])]
     both = observed[seen][:, pool]
     d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p:p + 1], axis=1)
     n = both.sum(0)
@@ -238,4 +245,21 @@ def test_batched_fill_equals_the_per_point_definition(seed):
     assert np.isfinite(spread).sum() > 10
     np.testing.assert_allclose(filled, ref, rtol=0, atol=1e-10)
     np.testing.assert_array_equal(np.isnan(spread), np.isnan(ref_spread))
+    np.testing.assert_allclose(spread, ref_spread, rtol=1e-10)
+
+
+def test_batched_fill_equals_the_definition_on_a_cloud_whose_neighbours_change():
+    # points that wander far relative to their spacing: a point's nearest by mean
+    # distance are often not among its 17 nearest in any one frame (the definition of
+    # the candidates' pool, which the batched search must follow exactly)
+    rng = np.random.default_rng(5)
+    F, P = 12, 150
+    X = rng.standard_normal((1, 3, P)) + 0.6 * np.cumsum(rng.standard_normal((F, 3, P)), axis=0)
+    obs = np.ones((F, P), bool)
+    lost = rng.choice(P, 30, replace=False)
+    obs[:, lost] = np.arange(F)[:, None] < rng.integers(4, F, lost.size)[None, :]
+    filled, spread = fill_unseen(X, obs)
+    ref, ref_spread = _ref_fill_unseen(X, obs, np.ones(P, bool))
+    assert np.isfinite(spread).sum() == 30
+    np.testing.assert_allclose(filled, ref, rtol=0, atol=1e-10)
     np.testing.assert_allclose(spread, ref_spread, rtol=1e-10)

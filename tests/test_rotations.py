@@ -78,6 +78,35 @@ def test_closed_form_lift_and_log_match_the_svd_and_scipy():
                                    atol=1e-9)
 
 
+def test_batched_projection_to_so3_matches_the_svd_on_hard_cases():
+    rng = np.random.default_rng(4)
+    n = 3000
+    rot = Rotation.random(n, random_state=2).as_matrix()
+    cases = {
+        "random": rng.standard_normal((n, 3, 3)),
+        "near rotations": rot + 0.01 * rng.standard_normal((n, 3, 3)),
+        "reflections": rot @ np.diag([1.0, 1.0, -1.0]) + 0.3 * rng.standard_normal((n, 3, 3)),
+        "units": rng.standard_normal((n, 3, 3)) * 10.0 ** rng.uniform(-200, 200, (n, 1, 1)),
+        "rank 2": rng.standard_normal((n, 3, 2)) @ rng.standard_normal((n, 2, 3)),
+        "equal singular values": rot * np.array([1.0, -1.0, 1.0])[:, None],
+    }
+    cases["mixed"] = np.concatenate([c[:200] for c in cases.values()] + [np.zeros((2, 3, 3))])
+    for name, A in cases.items():
+        R = GEO.project_to_so3_batch(A)
+        assert np.isfinite(R).all(), name
+        np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
+                                   atol=1e-13, err_msg=name)
+        np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-13, err_msg=name)
+        # the SO(3) Procrustes objective trace(R' A) is the SVD's (the maximiser is unique
+        # except on "equal singular values", where the objective still is)
+        best = GEO.project_to_so3(A)
+        np.testing.assert_allclose(np.einsum("nij,nij->n", R, A),
+                                   np.einsum("nij,nij->n", best, A),
+                                   rtol=1e-12, atol=1e-300, err_msg=name)
+        if name not in ("equal singular values", "mixed"):
+            np.testing.assert_allclose(R, best, atol=1e-10, err_msg=name)
+
+
 def test_l1_average_robust_to_outliers():
     rng = np.random.default_rng(0)
     F, m = 30, 9

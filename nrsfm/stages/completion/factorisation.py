@@ -145,32 +145,39 @@ def _truncated_svd(A, r):
     return V, s, (V * inv).T @ A
 
 
-def _solve_structure(Wz, groups, M, t, lam, prior_mean=None):
+def _sums(Wz):
+    """``(||Wz||^2, row sums)``: the constants of the data terms below."""
+    return np.sum(Wz * Wz), Wz.sum(axis=1)
+
+
+def _solve_structure(Wz, groups, M, t, lam, prior_mean=None, sums=None):
     """B-step: per point, ridge least squares over the frames that observe it.
 
     ``groups`` from :func:`mask_groups`: the r x r normal matrix depends on the point only
     through its observation pattern, so it is inverted once per pattern. ``lam``: the
-    ridge weight, or an (r, r) prior precision with ``prior_mean`` (r,). Returns
-    ``(B, data)``: B (r, P) and ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the
-    normal equations.
+    ridge weight, or an (r, r) prior precision with ``prior_mean`` (r,). ``sums``:
+    :func:`_sums` of Wz (computed when not given). Returns ``(B, data)``: B (r, P) and
+    ``||P_Omega(W - M B - t 1')||^2`` at the solution, from the normal equations.
     """
     patterns, index = groups
     r = M.shape[1]
+    ww, row_sum = _sums(Wz) if sums is None else sums
     A = normal_matrices(M, patterns)[1]
     reg = lam * np.eye(r) if np.ndim(lam) == 0 else lam
     inv = np.linalg.inv(A + reg)                              # (U, r, r)
     o2 = np.repeat(patterns, 2, axis=1).astype(float)         # (U, 2F)
-    n_rows = o2[index].sum(axis=0)                            # (2F,) observed per row
+    n_rows = np.bincount(index, minlength=o2.shape[0]) @ o2   # (2F,) observed per row
     rhs = M.T @ Wz - ((M * t[:, None]).T @ o2.T)[:, index]    # (r, P)
     shift = 0.0 if prior_mean is None else (reg @ prior_mean)[:, None]
     B = np.einsum("prs,sp->rp", inv[index], rhs + shift)
-    data = (np.sum(Wz * Wz) - 2.0 * t @ Wz.sum(axis=1) + (t * t) @ n_rows
+    data = (ww - 2.0 * t @ row_sum + (t * t) @ n_rows
             - 2.0 * np.sum(B * rhs) + np.einsum("rp,prs,sp->", B, A[index], B))
     return B, max(float(data), 0.0)
 
 
-def _solve_motion(Wz, obs, B, lam):
-    """M-step: per frame, ridge least squares for its two rows and offset.
+def _solve_motion(Wz, obs, B, lam, ww=None):
+    """M-step: per frame, ridge least squares for its two rows and offset; ``obs`` (F, P)
+    as float, ``ww`` = ``||Wz||^2`` (computed when not given).
 
     Returns ``(M, t, data)``: ``data`` is ``||P_Omega(W - M B - t 1')||^2`` at the solution,
     from the normal equations (no 2F x P residual is formed).
@@ -179,11 +186,11 @@ def _solve_motion(Wz, obs, B, lam):
     F = obs.shape[0]
     Bt = np.vstack([B, np.ones((1, P))])                      # (r + 1, P)
     outer = np.einsum("ip,jp->pij", Bt, Bt).reshape(P, -1)
-    A = (obs.astype(float) @ outer).reshape(F, r + 1, r + 1)
+    A = (obs @ outer).reshape(F, r + 1, r + 1)
     reg = np.diag(np.r_[np.full(r, lam), 0.0])
     rhs = (Wz @ Bt.T).reshape(F, 2, r + 1).transpose(0, 2, 1)  # (F, r + 1, 2)
     X = np.linalg.solve(A + reg, rhs)                          # (F, r + 1, 2)
-    data = (np.sum(Wz * Wz) - 2.0 * np.sum(X * rhs)
+    data = ((np.sum(Wz * Wz) if ww is None else ww) - 2.0 * np.sum(X * rhs)
             + np.einsum("fia,fij,fja->", X, A, X))
     X = X.transpose(0, 2, 1).reshape(2 * F, r + 1)
     return X[:, :r], X[:, r], max(float(data), 0.0)
@@ -208,10 +215,10 @@ def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     accelerate alternating least squares, 1998): plain alternation crawls along the
     shallow valleys of a factorisation with missing data (Buchanan & Fitzgibbon, CVPR 2005).
     """
-    groups = mask_groups(obs)
+    groups, sums, obs_f = mask_groups(obs), _sums(Wz), obs.astype(float)
 
     def f(M, t):                                    # B-step, the gauge, and the cost
-        B, data = _solve_structure(Wz, groups, M, t, lam)
+        B, data = _solve_structure(Wz, groups, M, t, lam, sums=sums)
         mean = B.mean(axis=1)
         B, t = B - mean[:, None], t + M @ mean
         return B, t, 0.5 * (data + lam * (np.sum(M * M) + np.sum(B * B))) / scale
@@ -219,7 +226,7 @@ def _alternate(Wz, obs, M, t, lam, tol, max_iter, scale):
     B, t, c = f(M, t)
     cost = []
     for k in range(1, max(max_iter, 1) + 1):
-        M1, t1, _ = _solve_motion(Wz, obs, B, lam)
+        M1, t1, _ = _solve_motion(Wz, obs_f, B, lam, ww=sums[0])
         M1 = _balance(M1, B)
         B1, t1, c1 = f(M1, t1)
         d = k ** (1.0 / 3.0)
@@ -290,13 +297,12 @@ def factorise_lagged(Wz, obs, rank, copies, *, lam_fraction=LAM_FRACTION, tol=1e
         raise ValueError(f"lam_fraction must be positive; got {lam_fraction!r}")
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
-    Hz, obs_h = Wz.ravel()[copies.gather], obs.ravel()[copies.gather_mask]
+    Hz, obs_h = copies.lag(Wz), copies.lag(obs, mask=True)
     M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
     gain_h = fill_gain(M, obs_h)
     B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
     fit = M @ B + t[:, None]
-    fit = (np.bincount(copies.target, fit.ravel()[copies.order], Wz.size)
-           / copies.counts).reshape(Wz.shape)                 # mean of each entry's copies
+    fit = copies.mean(fit, Wz.shape)                          # mean of each entry's copies
     j = copies.lags.index(0)
     return Completion(W=np.where(np.repeat(obs, 2, axis=0), Wz, fit), observed=obs,
                       method="factorisation", lags=copies.lags, rank=r, n_iter=len(cost),

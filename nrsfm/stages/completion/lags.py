@@ -38,6 +38,9 @@ class Copies:
     for lags ``d_1, ..., d_n``: index arrays, so that a completion lags a matrix, and
     averages the copies of each entry back, with one numpy expression each.
 
+    With the lags ``(0,)`` H is W: the index arrays are then None and :meth:`lag` and
+    :meth:`mean` are copies.
+
     Attributes
     ----------
     lags : tuple of int
@@ -60,6 +63,21 @@ class Copies:
     order: np.ndarray
     target: np.ndarray
     counts: np.ndarray
+
+    def lag(self, Z, mask=False):
+        """H of Z (2F, P), or with ``mask`` of an (F, P) mask: a new array."""
+        if self.gather is None:
+            return np.array(Z)
+        return Z.ravel()[self.gather_mask if mask else self.gather]
+
+    def mean(self, L, shape):
+        """The mean of the copies of each entry of a matrix ``shape`` (2F, P) from L
+        shaped like H (summed lag by lag)."""
+        if self.gather is None:
+            return np.array(L).reshape(shape)
+        size = int(np.prod(shape))
+        return (np.bincount(self.target, L.ravel()[self.order], size)
+                / self.counts).reshape(shape)
 
 
 def check_lags(lags):
@@ -98,6 +116,9 @@ def lag_copies(F, P, lags):
     """The :class:`Copies` of the lagged matrix of a (2F, P) W for ``lags`` (checked by
     :func:`check_lags`)."""
     lags = check_lags(lags)
+    if lags == NO_LAGS:
+        return Copies(lags=lags, gather=None, gather_mask=None, order=None, target=None,
+                      counts=None)
     frames = np.clip(np.arange(F)[:, None] + np.asarray(lags)[None, :], 0, F - 1)  # (F, n)
     points = np.arange(P)
     rows = 2 * frames[:, None, :, None] + np.arange(2)[None, :, None, None]   # (F, 2, n, 1)

@@ -105,7 +105,7 @@ def soft_impute_lagged(Wz, observed, copies, *, tau=None, tau_fraction=TAU_FRACT
                           **result)
     t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
     Z = np.where(obs2, Wz, t)                                   # mean fill
-    H = Z.ravel()[copies.gather]
+    H = copies.lag(Z)
     sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
     if not sigma1 > 0:
         raise ValueError("the observed entries of W have no spread: nothing to complete")
@@ -143,7 +143,7 @@ def _continuation(Z, missing, copies, taus, tol, max_iter):
             y = cur + (k - 1) / (k + 2) * (cur - prev)          # the extrapolated point
             Y = Z.copy()
             Y[missing] = y
-            H = Y.ravel()[copies.gather]
+            H = copies.lag(Y)
             t = H.mean(axis=1, keepdims=True)                   # free row offsets
             # nuclear-norm prox: singular value thresholding from the Gram matrix of H's
             # short side (a third of the thin SVD's cost on pickup's 714 x 123 H; the small
@@ -151,8 +151,7 @@ def _continuation(Z, missing, copies, taus, tol, max_iter):
             fit, s = weighted_svt(H - t, np.full(min(H.shape), tau_s))
             rank = int(np.count_nonzero(s))
             fit += t
-            new = (np.bincount(copies.target, fit.ravel()[copies.order], Z.size)
-                   / copies.counts).reshape(Z.shape)[missing]   # mean of each entry's copies
+            new = copies.mean(fit, Z.shape)[missing]            # mean of each entry's copies
             change = np.linalg.norm(new - cur) / scale
             if np.vdot(y - new, new - cur) > 0:                 # against the momentum
                 k = 0
