@@ -170,8 +170,9 @@ def _solve_structure(Wz, groups, M, t, lam, prior_mean=None, sums=None):
     rhs = M.T @ Wz - ((M * t[:, None]).T @ o2.T)[:, index]    # (r, P)
     shift = 0.0 if prior_mean is None else (reg @ prior_mean)[:, None]
     B = np.einsum("prs,sp->rp", inv[index], rhs + shift)
-    data = (ww - 2.0 * t @ row_sum + (t * t) @ n_rows
-            - 2.0 * np.sum(B * rhs) + np.einsum("rp,prs,sp->", B, A[index], B))
+    # b' A_p b = b' (rhs_p + shift) - b' reg b at the solution of (A_p + reg) b = rhs + shift
+    quad = np.sum(B * (rhs + shift)) - np.einsum("rp,rs,sp->", B, reg, B)
+    data = ww - 2.0 * t @ row_sum + (t * t) @ n_rows - 2.0 * np.sum(B * rhs) + quad
     return B, max(float(data), 0.0)
 
 
@@ -185,8 +186,11 @@ def _solve_motion(Wz, obs, B, lam, ww=None):
     r, P = B.shape
     F = obs.shape[0]
     Bt = np.vstack([B, np.ones((1, P))])                      # (r + 1, P)
-    outer = np.einsum("ip,jp->pij", Bt, Bt).reshape(P, -1)
-    A = (obs @ outer).reshape(F, r + 1, r + 1)
+    i, j = np.triu_indices(r + 1)                             # A is symmetric
+    upper = obs @ (Bt[i] * Bt[j]).T                           # (F, pairs)
+    A = np.empty((F, r + 1, r + 1))
+    A[:, i, j] = upper
+    A[:, j, i] = upper
     reg = np.diag(np.r_[np.full(r, lam), 0.0])
     rhs = (Wz @ Bt.T).reshape(F, 2, r + 1).transpose(0, 2, 1)  # (F, r + 1, 2)
     X = np.linalg.solve(A + reg, rhs)                          # (F, r + 1, 2)
