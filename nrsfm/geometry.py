@@ -72,6 +72,10 @@ def _smallest_eigenvector(H):
     return v, gap
 
 
+#: matrices per pass of :func:`project_to_so3_batch` (its (9, n) arrays stay in cache)
+_CHUNK = 1 << 14
+
+
 def project_to_so3_batch(A, tol=1e-13, max_iter=20, min_det=1e-6, min_gap=1e-4):
     """Nearest rotations to the (n, 3, 3) matrices ``A``: :func:`project_to_so3`, faster
     for large n.
@@ -86,6 +90,27 @@ def project_to_so3_batch(A, tol=1e-13, max_iter=20, min_det=1e-6, min_gap=1e-4):
     (nearly singular A, close singular values, no convergence in ``max_iter``) by
     :func:`project_to_so3`'s SVD. Agrees with it to about 1e-11 (the reflected ones;
     the others to about 1e-14). Runs over chunks of ``_CHUNK`` matrices (cache-sized).
+
+    Parameters
+    ----------
+    A : (n, 3, 3) array_like
+        Finite matrices, any scale.
+    tol, max_iter : float, int
+        Newton's stopping rule and cap.
+    min_det, min_gap : float
+        Below these (relative) the SVD decides.
+
+    Returns
+    -------
+    R : (n, 3, 3) ndarray
+        Rotations, ``argmax_{R in SO(3)} trace(R' A_i)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A = np.random.default_rng(0).standard_normal((1000, 3, 3))
+    >>> bool(np.allclose(project_to_so3_batch(A), project_to_so3(A), atol=1e-10))
+    True
     """
     A = np.asarray(A, float)
     flat = A.reshape(-1, 9)
@@ -93,9 +118,6 @@ def project_to_so3_batch(A, tol=1e-13, max_iter=20, min_det=1e-6, min_gap=1e-4):
     for s in range(0, flat.shape[0], _CHUNK):
         out[s:s + _CHUNK] = _polar_chunk(flat[s:s + _CHUNK], tol, max_iter, min_det, min_gap)
     return out.reshape(A.shape)
-
-
-_CHUNK = 1 << 14
 
 
 def _polar_chunk(flat, tol, max_iter, min_det, min_gap):
