@@ -127,10 +127,11 @@ def _polar_chunk(flat, tol, max_iter, min_det, min_gap):
     big = np.abs(X).max(axis=0)
     X = X / np.where(big > 0, big, 1.0)                            # no overflow below
     norm = np.sqrt((X * X).sum(axis=0))
-    det = X[0] * (X[4] * X[8] - X[5] * X[7]) - X[1] * (X[3] * X[8] - X[5] * X[6]) \
-        + X[2] * (X[3] * X[7] - X[4] * X[6])
+    C = _cofactors(X)
+    det = X[0] * C[0] + X[1] * C[1] + X[2] * C[2]
     todo = np.flatnonzero(np.abs(det) > min_det * (norm / np.sqrt(3.0)) ** 3)
-    X, A0, moved = X[:, todo], X[:, todo], np.zeros(todo.size)
+    A0 = X[:, todo]                             # the iteration below never writes into it
+    X, moved = A0, np.zeros(todo.size)
     for _ in range(max_iter if todo.size else 0):
         C = _cofactors(X)
         C /= X[0] * C[0] + X[1] * C[1] + X[2] * C[2]                # X^-T

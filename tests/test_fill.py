@@ -110,8 +110,8 @@ def _ref_candidates(X, observed, p):
     both = observed[sample][:, near]
     coarse = np.where(both, d[:, near], 0).sum(0) / np.maximum(both.sum(0), 1)
     coarse[both.sum(0) == 0] = np.inf
-    pool = near[np.argsort(coarse, kind="stable")[:fill._POOL]]
-    pool = pool[np.isfinite(coarse[np.searchsorted(near, pool)])]
+    first = np.argsort(coarse, kind="stable")[:fill._POOL]
+    pool = near[first[np.isfinite(coarse[first])]]
     both = observed[seen][:, pool]
     d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p:p + 1], axis=1)
     n = both.sum(0)

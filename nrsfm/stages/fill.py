@@ -142,7 +142,7 @@ def _candidates(Xt, O, todo):
     from the ``_POOL`` nearest by mean distance over its sampled frames among the
     ``_POOL + 1`` nearest to it in each of them."""
     sf, sv, allf, allv = _samples(O, todo)
-    slot, q = _near_pairs(Xt, O, todo, np.where(sv, sf, sf[:, :1]))
+    slot, q = _near_pairs(Xt, O, todo, np.where(sv, sf, sf[:, :1]))   # pad: a repeat
     coarse, count = _mean_distance(Xt, O, todo[slot], q, sf[slot], sv[slot])
     ok = (count > 0) & (q != todo[slot])
     slot, q, coarse = slot[ok], q[ok], coarse[ok]
