@@ -131,7 +131,7 @@ def _polar_chunk(flat, tol, max_iter, min_det, min_gap):
     det = X[0] * C[0] + X[1] * C[1] + X[2] * C[2]
     todo = np.flatnonzero(np.abs(det) > min_det * (norm / np.sqrt(3.0)) ** 3)
     A0 = X[:, todo]                             # the iteration below never writes into it
-    X, moved = A0, np.zeros(todo.size)
+    X, moved = A0, np.full(todo.size, np.inf)   # none converged before an iteration
     for _ in range(max_iter if todo.size else 0):
         C = _cofactors(X)
         C /= X[0] * C[0] + X[1] * C[1] + X[2] * C[2]                # X^-T

@@ -249,3 +249,10 @@ def test_combine_family_beats_single_triplet_under_noise():
     errs = np.array(errs)
     assert np.all(errs[:, 0] < errs[:, 1]), errs
     assert errs[:, 0].mean() < 0.98 * errs[:, 1].mean(), errs
+
+
+def test_batched_projection_without_iterations_falls_back_to_the_svd():
+    # with max_iter = 0 no matrix has converged: every one goes to the SVD
+    A = np.random.default_rng(6).standard_normal((50, 3, 3))
+    np.testing.assert_allclose(GEO.project_to_so3_batch(A, max_iter=0), GEO.project_to_so3(A),
+                               atol=1e-13)
