@@ -1,10 +1,10 @@
 """Study for issue 22: does the default shape stage's weight law hold on data it was not
 read from?
 
-The default (``BilinearSettings``) sets ``mu = m * noise * (sqrt(F) + sqrt(3P))`` with
-``m = max(mu_factor, mu_noise * nr)``, ``nr`` the noise level of W beyond rank 3K over W's
-RMS entry; ``mu_factor = 0.01`` and ``mu_noise = 0.6`` were read off the four Akhter
-sequences and pickup and stretch under noise. Here, on other shapes and other cameras (the
+The default (``BilinearSettings``) sets ``mu = max(mu_factor * noise * (sqrt(F) +
+sqrt(3P)), mu_noise * noise^2 * (F + 2P) / sigma_1(X_init#))``, noise the level of W beyond
+rank 3K; ``mu_factor = 0.01`` was read off the four Akhter sequences, ``mu_noise = 5`` off
+pickup and stretch under noise (``benchmarks/shape_noise_weight.py``). Here, on other shapes and other cameras (the
 external real sequences and pickup, re-projected by a camera turning at random every frame;
 Gaussian noise of std sigma x the mean row std of W, seed 0), with the ground-truth
 rotations: e3d of the default, and of the same solver with a constant ``m`` on a grid

@@ -324,17 +324,24 @@ def test_bilinear_rank_from_W_and_the_prior():
 
 
 def test_bilinear_weight_follows_the_square_of_the_noise():
-    """mu = max(mu_factor, mu_noise nr) noise (sqrt(F) + sqrt(3P)): the factor mu_factor
-    on clean W, mu_noise nr (nr: the noise over W's RMS entry) once that is larger."""
+    """mu = max(mu_factor noise (sqrt(F) + sqrt(3P)), mu_noise noise^2 (F + 2P) / sigma_1):
+    the clean-data term on nearly clean W, the noise term (the shrinkage form) once that is
+    larger; the ratio of the two is free of W's units."""
     seq = data_tools.make_synthetic(F=50, P=20, K=3, motion="smooth", seed=3)
+    F, P = 50, 20
+    ratios = []
     for sigma in (0.005, 0.1):
         W = data_tools.add_noise(seq.W, sigma, seed=1)
-        res = optimize_shapes_bilinear(W, seq.rotations, 3)
-        nr = res.params["noise_rel"]
-        flat = optimize_shapes_bilinear(W, seq.rotations, 3, mu_noise=0.0)
-        ratio = res.mu / flat.mu
-        assert ratio == pytest.approx(max(1.0, 0.6 * nr / 0.01), rel=1e-9)
-    assert ratio > 2                                   # sigma .1: the noise term decides
+        for scale in (1.0, 1e3):
+            res = optimize_shapes_bilinear(scale * W, seq.rotations, 3)
+            flat = optimize_shapes_bilinear(scale * W, seq.rotations, 3, mu_noise=0.0)
+            shrink = (5.0 * res.noise ** 2 * (F + 2 * P) / res.X_init_singular_values[0])
+            clean = 0.01 * res.noise * (np.sqrt(F) + np.sqrt(3 * P))
+            assert flat.mu == pytest.approx(clean, rel=1e-9)
+            assert res.mu == pytest.approx(max(clean, shrink), rel=1e-9)
+            ratios.append(res.mu / flat.mu)
+    assert ratios[0] == pytest.approx(1.0) and ratios[1] == pytest.approx(ratios[0])
+    assert ratios[2] > 2 and ratios[3] == pytest.approx(ratios[2], rel=1e-9)
 
 
 def test_noise_level_from_W_alone():

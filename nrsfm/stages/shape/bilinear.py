@@ -15,13 +15,13 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   Eq. 10) and ``a_i = sigma_1 / sigma_i`` of ``X_init#`` (Eq. 9 up to the common factor,
   which goes into ``mu``); ``weighted`` the same ratios with ``a_1 = 1`` (Eq. 8); ``nuclear``
   ``a_i = 1`` (Eq. 7).
-* Balance from W alone: ``mu = m * noise * (sqrt(F) + sqrt(3P))``, ``noise`` the
-  RMS of W beyond its rank-3K approximation (:func:`nrsfm.noise.noise_level`) and
-  ``m = max(mu_factor, mu_noise * nr)``, ``nr`` that noise over W's RMS entry: the weight
-  grows as the square of the noise (``mu_factor = 0.01``, ``mu_noise = 0.6``, measured in
-  ``docs/shape_stage.md``; 1 would be the threshold that removes Gaussian noise of that
-  level and is far too strong). Noise-free, exactly rank-3K W gives ``mu`` = 0 (to
-  rounding) and (*) is the exact rank-K fit.
+* Balance from W alone: ``mu = max(mu_factor * noise * (sqrt(F) + sqrt(3P)),
+  mu_noise * noise^2 * (F + 2P) / sigma_1)``, ``noise`` the RMS of W beyond rank 3K
+  (:func:`nrsfm.noise.noise_level`), ``sigma_1`` that of X_init#: under noise the penalty
+  of the i-th singular value is ``mu_noise noise^2 (F + 2P) / sigma_i``, the form of the
+  optimal shrinkage of singular values (Gavish and Donoho, IEEE Trans. Inf. Theory 2017).
+  ``mu_factor = 0.01``, ``mu_noise = 5``: measured, ``docs/shape_stage.md``. Noise-free,
+  exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the exact rank-K fit.
 * Rank r from W and the prior (``rank=None``): K where W is itself of rank at most 3K (its
   numerical rank is below 3K, or ``s_3K+1 / s_3K < GAP_MAX``: a rank-K shape model plus
   noise), the rank-K model; otherwise the prior chooses the rank: r starts at 3K, the
@@ -108,13 +108,14 @@ class BilinearSettings(SolverSettings):
         at most 3K, else as large as the prior's answer needs (from 3K; columns added while
         the rank certificate wants one).
     mu_factor : float
-        Least ``m`` in ``mu = m * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` (measured:
-        0.01, ``docs/shape_stage.md``).
+        The clean-data term ``mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` of mu
+        (measured: 0.01, ``docs/shape_stage.md``).
     mu_noise : float
-        ``m = max(mu_factor, mu_noise * nr)``, ``nr`` the noise level over W's RMS entry:
-        the weight follows the square of the noise (measured: 0.6).
+        The noise term ``mu_noise * noise^2 * (F + 2P) / sigma_1(X_init#)`` (measured: 5);
+        mu is the larger of the two terms.
     mu : float or None
-        Override ``mu`` (W's units).
+        Override ``mu``, in the units of the W the solver is given (through
+        :func:`nrsfm.reconstruct`: ``W / scale``, ``scale = ||W||_F / 170``).
     min_mu : float
         Used only when the rank-K fit is not unique (the closed form's (K+1)-th eigenvalue
         at rounding level): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
@@ -141,7 +142,7 @@ class BilinearSettings(SolverSettings):
     INITS: ClassVar[tuple] = ("closed_form", "rank_k", "admm", "best")
     rank: Optional[int] = None
     mu_factor: float = 0.01
-    mu_noise: float = 0.6
+    mu_noise: float = 5.0
     mu: Optional[float] = None
     min_mu: float = 1e-5
     init: str = "closed_form"
@@ -302,13 +303,13 @@ class _Objective:
         self.hist["grad_norm"].append(relative_gradient(B, C, gB, gC))
 
 
-def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale):
+def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale, sigma_1):
     """mu (normalised units), the noise level, the closed-form start B0 and the nullspace
     gap; a RuntimeWarning (and ``mu >= min_mu``) when the rank-K fit is not unique."""
     noise = noise_from_singular_values(sw, Wn_shape, K)
     if st.mu is None:
-        nr = noise * math.sqrt(Wn_shape[0] * Wn_shape[1])       # ||Wn||_F = 1
-        mu_n = max(st.mu_factor, st.mu_noise * nr) * noise * (math.sqrt(F) + math.sqrt(3 * P))
+        mu_n = max(st.mu_factor * noise * (math.sqrt(F) + math.sqrt(3 * P)),   # clean W
+                   st.mu_noise * noise ** 2 * (F + 2 * P) / max(sigma_1, 1e-300))
     else:
         mu_n = float(st.mu) / scale
     gap, B0 = float("nan"), None
@@ -398,7 +399,7 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
     F, P = Xi3.shape[0], Xi3.shape[2]
     Xi = Xi3.reshape(F, 3 * P)
     a = bilinear_weights(sigma, r, prior)
-    mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale)
+    mu_n, noise, B0, gap = _balance_mu(sw, Wn.shape, F, P, K, r, Uw, Rf, st, scale, sigma[0])
     obj = _Objective(Rf, Wn, Xi, mu_n * a + RIDGE, cache["hist"])
     warm = cache.pop("warm", None)
     if warm is not None:
