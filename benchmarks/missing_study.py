@@ -44,7 +44,7 @@ from nrsfm.metrics import e3d  # noqa: E402
 from nrsfm.stages.completion import MAX_GAIN  # noqa: E402
 
 
-def dense_sequence(P, F, K, noise, lost, late, seed):
+def dense_sequence(P, F, K, noise, lost, late, seed, parts=False):
     """Synthetic dense tracks with lost and late tracks.
 
     Returns
@@ -54,6 +54,9 @@ def dense_sequence(P, F, K, noise, lost, late, seed):
     observed : (F, P) bool ndarray
     shapes : (F, 3, P) ndarray
         Ground truth in the camera frame, centred per frame.
+    model : dict
+        Only with ``parts``: the generator's ``rotations`` (F, 3, 3), ``coefficients``
+        (F, K) and ``basis`` (K, 3, P) (the shapes are ``R_f sum_k c_fk S_k``, centred).
     """
     rng = np.random.default_rng(seed)
     basis = rng.standard_normal((K, 3, P)) * np.array([1.0, 0.8, 0.6])[:, None]
@@ -62,7 +65,8 @@ def dense_sequence(P, F, K, noise, lost, late, seed):
     coeff = np.sin(2 * np.pi * rng.uniform(1, 4, (1, K)) * t / F
                    + rng.uniform(0, 2 * np.pi, (1, K)))
     coeff[:, 0] = 1.0 + 0.1 * coeff[:, 0]
-    cam = camera_rotations(F, "smooth", rng) @ np.einsum("fk,kip->fip", coeff, basis)
+    R = camera_rotations(F, "smooth", rng)
+    cam = R @ np.einsum("fk,kip->fip", coeff, basis)
     W = cam[:, :2].reshape(2 * F, P) + 3.0 * rng.standard_normal((2 * F, 1))
     W = W + noise * np.mean(np.std(W, axis=1)) * rng.standard_normal(W.shape)
     observed = np.ones((F, P), bool)
@@ -72,7 +76,8 @@ def dense_sequence(P, F, K, noise, lost, late, seed):
     lost_p, late_p = order[:n_lost], order[n_lost:n_lost + n_late]
     observed[:, lost_p] = frames < rng.integers(2, F, n_lost)[None, :]
     observed[:, late_p] = frames >= rng.integers(0, F - 2, n_late)[None, :]
-    return W, observed, cam - cam.mean(axis=2, keepdims=True)
+    out = (W, observed, cam - cam.mean(axis=2, keepdims=True))
+    return out + (dict(rotations=R, coefficients=coeff, basis=basis),) if parts else out
 
 
 def with_nan(W, observed):

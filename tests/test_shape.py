@@ -539,3 +539,17 @@ def test_bilinear_best_start_keeps_the_lower_objective_of_both_starts():
     assert best.params["init_kept"] in ("closed_form", "admm")
     with pytest.raises(ValueError, match="init"):
         optimize_shapes_bilinear(W, seq.rotations, 2, init="svd")
+
+
+def test_lbfgs_memory_survives_factors_collapsing_to_zero():
+    """With a weight large enough that the answer is X# = 0 the factors shrink towards 0
+    and the differences of gradients underflow (pickup under noise with the nuclear prior
+    at mu 186 raised ZeroDivisionError): a pair whose y has underflowed is not kept."""
+    from nrsfm.stages.shape.factors import _add_pair
+
+    s, y = np.ones((4, 1)), np.full((4, 1), 1e-320)     # s'y > 0, ||y|| underflows to 0
+    S, Y = [], []
+    _add_pair(S, Y, s, y)
+    assert S == [] and Y == []
+    _add_pair(S, Y, s, 1e-3 * s)
+    assert len(S) == 1

@@ -354,7 +354,9 @@ def _two_loop(g, S, Y, Linv):
     gamma = 1.0
     if S:
         ly = _half(Linv, Y[-1])
-        gamma = float(np.vdot(S[-1], Y[-1])) / float(np.vdot(ly, ly))
+        den = float(np.vdot(ly, ly))
+        if den > 0:                     # 0 where y underflows (factors collapsing to 0)
+            gamma = float(np.vdot(S[-1], Y[-1])) / den
     d = gamma * _h0(Linv, q)
     for s_, y_, (a, rho) in zip(S, Y, reversed(steps)):
         d += (a - rho * float(np.vdot(y_, d))) * s_
@@ -480,8 +482,10 @@ MEMORY = 10
 
 
 def _add_pair(S, Y, s_, y_):
-    """Keep (s, y) when ``s'y > 0`` (the update stays positive definite), at most MEMORY."""
-    if float(np.vdot(s_, y_)) > 1e-12 * float(np.linalg.norm(s_) * np.linalg.norm(y_)):
+    """Keep (s, y) when ``s'y > 0`` (the update stays positive definite) and y has not
+    underflowed, at most MEMORY."""
+    ny = float(np.linalg.norm(y_))
+    if ny > 0 and float(np.vdot(s_, y_)) > 1e-12 * float(np.linalg.norm(s_)) * ny:
         S.append(s_)
         Y.append(y_)
         if len(S) > MEMORY:
