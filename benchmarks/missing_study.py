@@ -56,11 +56,14 @@ def dense_sequence(P, F, K, noise, lost, late, seed, parts=False):
         Ground truth in the camera frame, centred per frame.
     model : dict
         Only with ``parts``: the generator's ``rotations`` (F, 3, 3), ``coefficients``
-        (F, K) and ``basis`` (K, 3, P) (the shapes are ``R_f sum_k c_fk S_k``, centred).
+        (F, K), ``basis`` (K, 3, P), the std of the basis entries ``basis_std`` (K, 3) and
+        the uncentred ``camera_shapes`` ``R_f sum_k c_fk S_k`` (F, 3, P).
     """
     rng = np.random.default_rng(seed)
-    basis = rng.standard_normal((K, 3, P)) * np.array([1.0, 0.8, 0.6])[:, None]
-    basis[1:] *= 0.4
+    axes, deform = np.array([1.0, 0.8, 0.6]), 0.4
+    basis = rng.standard_normal((K, 3, P)) * axes[:, None]
+    basis[1:] *= deform
+    std = axes[None, :] * np.r_[1.0, [deform] * (K - 1)][:, None]                 # (K, 3)
     t = np.arange(F)[:, None]
     coeff = np.sin(2 * np.pi * rng.uniform(1, 4, (1, K)) * t / F
                    + rng.uniform(0, 2 * np.pi, (1, K)))
@@ -77,7 +80,8 @@ def dense_sequence(P, F, K, noise, lost, late, seed, parts=False):
     observed[:, lost_p] = frames < rng.integers(2, F, n_lost)[None, :]
     observed[:, late_p] = frames >= rng.integers(0, F - 2, n_late)[None, :]
     out = (W, observed, cam - cam.mean(axis=2, keepdims=True))
-    return out + (dict(rotations=R, coefficients=coeff, basis=basis),) if parts else out
+    model = dict(rotations=R, coefficients=coeff, basis=basis, basis_std=std, camera_shapes=cam)
+    return out + (model,) if parts else out
 
 
 def with_nan(W, observed):
