@@ -3,7 +3,7 @@
 * :func:`project_to_so3`: the nearest rotation to a 3 x 3 matrix (also the SO(3)
   Procrustes solution, ``argmax_{R in SO(3)} trace(R' N)`` = ``project_to_so3(N)``).
 * :func:`project_to_so3_batch`: the same map for many matrices at once (the fill's Kabsch
-  steps), by Newton's polar iteration.
+  steps), in closed form.
 * :func:`procrustes_orthogonal`: the orthogonal (reflection allowed) Procrustes solution.
 * :func:`align_similarity`: per-frame similarity alignment of shapes (the e3d metric).
 * :func:`rotation_angle`: geodesic distance between rotations.
@@ -37,68 +37,42 @@ def project_to_so3(A):
 procrustes_so3 = project_to_so3
 
 
-def _cofactors(X):
-    """(9, n) cofactor matrices (row-major entries) of the (9, n) 3 x 3 matrices X."""
-    a, b, c, d, e, f, g, h, k = X
-    return np.stack([e * k - f * h, f * g - d * k, d * h - e * g,
-                     c * h - b * k, a * k - c * g, b * g - a * h,
-                     b * f - c * e, c * d - a * f, a * e - b * d])
-
-
-def _smallest_eigenvector(H):
-    """Unit eigenvectors (3, n) of the least eigenvalues of the symmetric 3 x 3 matrices
-    H (9, n), and the gaps ``(lambda_2 - lambda_3) / |lambda|_max`` (closed-form
-    eigenvalues, Smith 1961; the vector as the largest cross product of two rows of
-    ``H - lambda_3 I``)."""
-    h00, h01, h02, _, h11, h12, _, _, h22 = H
-    q = (h00 + h11 + h22) / 3.0
-    p = np.sqrt(((h00 - q) ** 2 + (h11 - q) ** 2 + (h22 - q) ** 2
-                 + 2.0 * (h01 * h01 + h02 * h02 + h12 * h12)) / 6.0)
-    p = np.where(p > 0, p, 1.0)
-    a, b, c = (h00 - q) / p, (h11 - q) / p, (h22 - q) / p
-    d, e, f = h01 / p, h02 / p, h12 / p
-    half_det = 0.5 * (a * (b * c - f * f) - d * (d * c - f * e) + e * (d * f - b * e))
-    phi = np.arccos(np.clip(half_det, -1.0, 1.0)) / 3.0
-    lam1 = q + 2.0 * p * np.cos(phi)
-    lam3 = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
-    lam2 = 3.0 * q - lam1 - lam3
-    rows = np.stack([np.stack([h00 - lam3, h01, h02]), np.stack([h01, h11 - lam3, h12]),
-                     np.stack([h02, h12, h22 - lam3])])                  # (3, 3, n)
-    cross = np.stack([np.cross(rows[i], rows[j], axis=0) for i, j in ((0, 1), (0, 2), (1, 2))])
-    size = np.einsum("kin,kin->kn", cross, cross)
-    v = np.take_along_axis(cross, size.argmax(axis=0)[None, None], axis=0)[0]
-    v /= np.sqrt(np.maximum(size.max(axis=0), 1e-300))
-    gap = (lam2 - lam3) / np.maximum(np.maximum(np.abs(lam1), np.abs(lam3)), 1e-300)
-    return v, gap
-
-
 #: matrices per pass of :func:`project_to_so3_batch` (its (9, n) arrays stay in cache)
-_CHUNK = 1 << 14
+_CHUNK = 1 << 13
 
 
-def project_to_so3_batch(A, tol=1e-13, max_iter=20, min_det=1e-6, min_gap=1e-4):
+def project_to_so3_batch(A, min_gap=1e-4, max_iter=30):
     """Nearest rotations to the (n, 3, 3) matrices ``A``: :func:`project_to_so3`, faster
-    for large n.
+    for large n (the fill's Kabsch steps), in closed form.
 
-    Where ``|det A| > min_det (||A||_F / sqrt 3)^3`` the orthogonal polar factor Q of A is
-    found by Newton's iteration ``X <- (g X + X^-T / g) / 2`` with the Frobenius-norm
-    scaling g (Higham, "Functions of Matrices", 2008, section 8.6), on the entries as
-    (9, n) arrays, until no entry moves by more than ``tol``. Q is the answer where
-    ``det A > 0``; where ``det A < 0`` the answer is ``U diag(1, 1, -1) V' = Q (I - 2 v v')``
-    with v the right singular vector of A's least singular value (the least eigenvector of
-    ``Q' A = V S V'``), when that value is apart from the next by ``min_gap``. The others
-    (nearly singular A, close singular values, no convergence in ``max_iter``) by
-    :func:`project_to_so3`'s SVD. Agrees with it to about 1e-11 (the reflected ones;
-    the others to about 1e-14). Runs over chunks of ``_CHUNK`` matrices (cache-sized).
+    With the signed singular values ``e = (s_1, s_2, sign(det A) s_3)`` and their symmetric
+    functions ``I1 = sum e``, ``I2 = e_1 e_2 + e_1 e_3 + e_2 e_3``, ``I3 = det A``, the
+    rotation ``U diag(1, 1, sign det A) V'`` is
+
+        R = ((I1^2 - I2) A + I1 cof(A) - A A' A) / (I1 I2 - I3)
+
+    (``cof`` the cofactor matrix: the three coefficients make ``e_i`` map to 1 for each i).
+    ``I1`` is the largest root of ``x^4 - 2 t x^2 - 8 I3 x + t^2 - 4 e2(A'A)``
+    (``t = ||A||_F^2``, ``e2`` the sum of the principal 2 x 2 minors), found by Newton's
+    method from the upper bound ``sqrt(t + 2 sqrt(3 e2))``; then ``I2 = (I1^2 - t) / 2``.
+    The denominator is ``(e_1 + e_2)(e_1 + e_3)(e_2 + e_3)``, zero where the rotation is not
+    unique. As it nears zero both the formula and the SVD lose digits as its inverse (the
+    rotation is that ill-determined), and below about 1e-6 ``I1^3`` the formula fails first;
+    so where it is below ``min_gap I1^3``, or Newton has not converged in ``max_iter``,
+    :func:`project_to_so3`'s SVD decides. One step of Newton's polar iteration,
+    ``R <- (R + R^-T) / 2``, makes R orthogonal to rounding. Agrees with the SVD to about
+    3e-13 where the rotation is well determined (``tests/test_rotations.py``; the
+    measurements in ``docs/missing_data_scale.md``). Runs over chunks of ``_CHUNK``
+    matrices (cache-sized); each matrix's answer is the same whatever else is passed.
 
     Parameters
     ----------
     A : (n, 3, 3) array_like
         Finite matrices, any scale.
-    tol, max_iter : float, int
-        Newton's stopping rule and cap.
-    min_det, min_gap : float
-        Below these (relative) the SVD decides.
+    min_gap : float
+        Relative denominator below which the SVD decides.
+    max_iter : int
+        Newton's cap for ``I1``.
 
     Returns
     -------
@@ -116,48 +90,50 @@ def project_to_so3_batch(A, tol=1e-13, max_iter=20, min_det=1e-6, min_gap=1e-4):
     flat = A.reshape(-1, 9)
     out = np.empty_like(flat)
     for s in range(0, flat.shape[0], _CHUNK):
-        out[s:s + _CHUNK] = _polar_chunk(flat[s:s + _CHUNK], tol, max_iter, min_det, min_gap)
+        part = flat[s:s + _CHUNK]
+        R, ok = _so3_closed_form(np.ascontiguousarray(part.T), min_gap, max_iter)
+        out[s:s + _CHUNK] = R.T
+        if not ok.all():
+            bad = s + np.flatnonzero(~ok)
+            out[bad] = project_to_so3(flat[bad].reshape(-1, 3, 3)).reshape(-1, 9)
     return out.reshape(A.shape)
 
 
-def _polar_chunk(flat, tol, max_iter, min_det, min_gap):
-    """:func:`project_to_so3_batch` of the (n, 9) matrices ``flat``, as (n, 9)."""
-    out = np.empty_like(flat)
-    X = np.ascontiguousarray(flat.T)
-    big = np.abs(X).max(axis=0)
-    X = X / np.where(big > 0, big, 1.0)                            # no overflow below
-    norm = np.sqrt((X * X).sum(axis=0))
-    C = _cofactors(X)
-    det = X[0] * C[0] + X[1] * C[1] + X[2] * C[2]
-    todo = np.flatnonzero(np.abs(det) > min_det * (norm / np.sqrt(3.0)) ** 3)
-    A0 = X[:, todo]                             # the iteration below never writes into it
-    X, moved = A0, np.full(todo.size, np.inf)   # none converged before an iteration
-    for _ in range(max_iter if todo.size else 0):
-        C = _cofactors(X)
-        C /= X[0] * C[0] + X[1] * C[1] + X[2] * C[2]                # X^-T
-        g = np.sqrt(np.sqrt(np.einsum("in,in->n", C, C) / np.einsum("in,in->n", X, X)))
-        X = X * g
-        C /= g
-        X += C
-        X *= 0.5
-        moved = np.abs(X - C).max(axis=0)       # half the gap of g X and X^-T / g
-        if moved.max() <= tol:
-            break
-    ok = moved <= tol
-    flip = np.flatnonzero(ok & (det[todo] < 0))
-    if flip.size:
-        Q, N = X[:, flip].reshape(3, 3, -1), A0[:, flip].reshape(3, 3, -1)
-        H = np.einsum("kin,kjn->ijn", Q, N)                     # Q' A, symmetric
-        v, gap = _smallest_eigenvector((0.5 * (H + H.transpose(1, 0, 2))).reshape(9, -1))
-        Qv = np.einsum("ijn,jn->in", Q, v)
-        X[:, flip] = (Q - 2.0 * Qv[:, None] * v[None]).reshape(9, -1)
-        ok[flip[gap < min_gap]] = False
-    svd = np.ones(flat.shape[0], bool)
-    svd[todo[ok]] = False
-    out[~svd] = X[:, ok].T
-    if svd.any():
-        out[svd] = project_to_so3(flat[svd].reshape(-1, 3, 3)).reshape(-1, 9)
-    return out
+def _so3_closed_form(M, min_gap, max_iter):
+    """(9, n) rotations of the (9, n) matrices M (row-major entries) by
+    :func:`project_to_so3_batch`'s formula, and where it holds (n,) bool."""
+    big = np.abs(M).max(axis=0)
+    M = M / np.where(big > 0, big, 1.0)                            # entries in [-1, 1]
+    m = M.reshape(3, 3, -1)
+    C = np.einsum("kin,kjn->ijn", m, m)                            # A' A
+    cof = np.stack([np.cross(m[1], m[2], axis=0), np.cross(m[2], m[0], axis=0),
+                    np.cross(m[0], m[1], axis=0)])                 # cofactor matrix
+    det = np.einsum("in,in->n", m[0], cof[0])
+    t = C[0, 0] + C[1, 1] + C[2, 2]
+    e2 = (C[0, 0] * C[1, 1] - C[0, 1] ** 2 + C[0, 0] * C[2, 2] - C[0, 2] ** 2
+          + C[1, 1] * C[2, 2] - C[1, 2] ** 2)
+    c0 = t * t - 4.0 * e2
+    lam = np.sqrt(t + 2.0 * np.sqrt(np.maximum(3.0 * e2, 0.0)))   # >= I1 (Cauchy-Schwarz)
+    done = np.zeros(lam.size, bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(max_iter):
+            l2 = lam * lam
+            step = ((l2 - 2.0 * t) * l2 - 8.0 * det * lam + c0) / (4.0 * lam * (l2 - t)
+                                                                    - 8.0 * det)
+            lam -= np.where(done, 0.0, step)                       # each stops on its own:
+            done |= np.abs(step) <= 1e-13 * lam                    # quadratic, then exact
+            if done.all():
+                break
+        I2 = 0.5 * (lam * lam - t)
+        den = lam * I2 - det
+        AC = np.einsum("ikn,kjn->ijn", m, C)
+        R = ((lam * lam - I2) * m + lam * cof - AC) / den
+        ok = done & (den > min_gap * lam ** 3) & (big > 0)
+        cof = np.stack([np.cross(R[1], R[2], axis=0), np.cross(R[2], R[0], axis=0),
+                        np.cross(R[0], R[1], axis=0)])
+        R += cof / np.einsum("in,in->n", R[0], cof[0])             # one polar Newton step:
+        R *= 0.5                                                   # orthogonal to rounding
+    return R.reshape(9, -1), ok
 
 
 def procrustes_orthogonal(N):

@@ -59,11 +59,19 @@ _SAMPLE = 20        # frames of the point's that pick the candidates
 _CHUNK = 1 << 20    # (pair, frame) distances computed at once
 
 
+def _centroid(A):
+    """(..., 3) the mean of the (..., 3, k) points A over their last axis (``A.mean(axis=2)``
+    bit for bit, summed in the same order, faster for small k)."""
+    c = A[..., 0] + A[..., 1]
+    for j in range(2, A.shape[-1]):
+        c += A[..., j]
+    return c / A.shape[-1]
+
+
 def _kabsch(A, B):
     """(n, 3, 3) rotations (no reflection) with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)
     (the SO(3) Procrustes solution, the nearest rotation to the centred cross-covariance)."""
-    A = A - A.mean(axis=2, keepdims=True)
-    B = B - B.mean(axis=2, keepdims=True)
+    A = A - _centroid(A)[..., None]            # B's centring is implied: A's rows sum to 0
     return project_to_so3_batch(B @ A.transpose(0, 2, 1))
 
 
@@ -73,19 +81,21 @@ def _dist(a, b):
     return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
 
 
-def _mean_distance(Xt, O, p, q, frames, valid):
-    """(mean, count) for each pair (p[i], q[i]): the mean distance over the frames
-    ``frames[i][valid[i]]`` (in order) in which q[i] is seen, and their number."""
-    mean, count = np.empty(p.size), np.empty(p.size, int)
+def _mean_distance(Xt, O, todo, slot, q, frames, valid):
+    """(mean, count) for each pair (todo[slot[i]], q[i]): the mean distance over the
+    frames ``frames[slot[i]][valid[slot[i]]]`` (in order) in which q[i] is seen, and their
+    number; ``frames``, ``valid`` (n, S) per point slot."""
+    mean, count = np.empty(q.size), np.empty(q.size, int)
     F = Xt.shape[1]
     flat, seen = Xt.reshape(-1, 3), O.T.ravel()
+    own = Xt[todo[:, None], frames]                             # (n, S, 3), once per point
     step = max(1, _CHUNK // max(frames.shape[1], 1))
-    for s in range(0, p.size, step):
+    for s in range(0, q.size, step):
         i = slice(s, s + step)
-        f = frames[i].T                                         # (frames, pairs)
+        f = frames[slot[i]].T                                   # (frames, pairs)
         iq = q[i] * F + f
-        both = valid[i].T & seen.take(iq)
-        d = _dist(flat.take(iq, axis=0), flat.take(p[i] * F + f, axis=0))
+        both = valid[slot[i]].T & seen.take(iq)
+        d = _dist(flat.take(iq, axis=0), own[slot[i]].transpose(1, 0, 2))
         count[i] = both.sum(axis=0)
         mean[i] = np.where(both, d, 0).sum(axis=0) / np.maximum(count[i], 1)
     return mean, count
@@ -114,19 +124,20 @@ def _samples(O, todo):
     return np.take_along_axis(allf, j, axis=1), sv, allf, allv
 
 
-def _near_pairs(Xt, O, todo, sf):
+def _near_pairs(X, O, todo, sf):
     """Sorted distinct (point slot, candidate) pairs: in each of the point's sampled frames
-    ``sf`` (n, S), the ``_POOL + 1`` points seen there nearest to it (KD-tree per frame)."""
+    ``sf`` (n, S), the ``_POOL + 1`` points seen there nearest to it (KD-tree per frame;
+    X (F, 3, P), whose rows a frame's points are read from)."""
     from scipy.spatial import cKDTree
 
     slot, cand = [], []
     for f in np.unique(sf):
         rows, ids = np.flatnonzero((sf == f).any(axis=1)), np.flatnonzero(O[f])
         k = min(_POOL + 1, ids.size)
-        tree = cKDTree(Xt[ids, f], balanced_tree=False, compact_nodes=False)
+        tree = cKDTree(X[f][:, ids].T, leafsize=32, balanced_tree=False, compact_nodes=False)
         slot.append(np.repeat(rows, k))
-        cand.append(ids[tree.query(Xt[todo[rows], f], k=k)[1].reshape(-1)])
-    return _unique_pairs(np.concatenate(slot), np.concatenate(cand), Xt.shape[0])
+        cand.append(ids[tree.query(X[f][:, todo[rows]].T, k=k)[1].reshape(-1)])
+    return _unique_pairs(np.concatenate(slot), np.concatenate(cand), X.shape[2])
 
 
 def _first(key, slot, n):
@@ -136,20 +147,20 @@ def _first(key, slot, n):
     return key[rank < n]
 
 
-def _candidates(Xt, O, todo):
+def _candidates(X, Xt, O, todo):
     """(n, _POOL) each point's candidate neighbours (-1: none), nearest first by mean
     distance over the frames both are seen (only those seen with it in 3 frames or more),
     from the ``_POOL`` nearest by mean distance over its sampled frames among the
     ``_POOL + 1`` nearest to it in each of them."""
     sf, sv, allf, allv = _samples(O, todo)
-    slot, q = _near_pairs(Xt, O, todo, np.where(sv, sf, sf[:, :1]))   # pad: a repeat
-    coarse, count = _mean_distance(Xt, O, todo[slot], q, sf[slot], sv[slot])
+    slot, q = _near_pairs(X, O, todo, np.where(sv, sf, sf[:, :1]))    # pad: a repeat
+    coarse, count = _mean_distance(Xt, O, todo, slot, q, sf, sv)
     ok = (count > 0) & (q != todo[slot])
     slot, q, coarse = slot[ok], q[ok], coarse[ok]
     order = np.lexsort((q, coarse, slot))
     pick = _first(order, slot[order], _POOL)
     slot, q, coarse = slot[pick], q[pick], coarse[pick]
-    mean, n = _mean_distance(Xt, O, todo[slot], q, allf[slot], allv[slot])
+    mean, n = _mean_distance(Xt, O, todo, slot, q, allf, allv)
     keep = n >= 3
     slot, q, mean, coarse = slot[keep], q[keep], mean[keep], coarse[keep]
     order = np.lexsort((q, coarse, mean, slot))
@@ -160,20 +171,19 @@ def _candidates(Xt, O, todo):
     return out
 
 
-def _select(avail, n):
-    """(m, S) bool: the first ``n`` available of each row; rows with fewer than 3 none."""
-    sel = avail & (np.cumsum(avail, axis=1) <= n)
-    return sel & (sel.sum(axis=1) >= 3)[:, None]
-
-
-def _by_size(sel):
-    """[(k, rows, columns)]: the rows of ``sel`` with k selected, and their (rows, k)
-    selected columns in order."""
-    k = sel.sum(axis=1)
+def _by_size(avail, n):
+    """[(k, rows, columns)]: the first ``n`` available of each row of ``avail`` (m, S)
+    bool, grouped by their number k >= 3 (rows with fewer: none): the rows with k, and
+    their (rows, k) columns in order."""
+    sel, count = np.empty_like(avail), np.zeros(avail.shape[0], np.int64)
+    for j in range(avail.shape[1]):             # a running count per column (S is small)
+        count += avail[:, j]
+        sel[:, j] = avail[:, j] & (count <= n)
+    k = np.minimum(count, n)
     out = []
-    for n in np.unique(k[k >= 3]):
-        rows = np.flatnonzero(k == n)
-        out.append((n, rows, np.nonzero(sel[rows])[1].reshape(rows.size, n)))
+    for size in np.unique(k[k >= 3]):
+        rows = np.flatnonzero(k == size)
+        out.append((size, rows, np.nonzero(sel[rows])[1].reshape(rows.size, size)))
     return out
 
 
@@ -194,10 +204,11 @@ def _nearest_seen(seen, unseen_f, slot):
     return np.where(use_prev, prev, nxt)
 
 
-def _rigid(Xt, O, todo, ranked, slot, f):
+def _rigid(Xt, O, todo, ranked, slot, f, seen_f):
     """(m, 3) the rigid fill of each (point slot, unseen frame) pair (NaN where not
     made): from the frame r seen nearest in time, the ``RIGID_NEIGHBOURS`` candidates
-    nearest to the point in r among those seen in r and f."""
+    nearest to the point in r among those seen in r and f (``seen_f``: which of its
+    candidates are seen in f, (m, _POOL))."""
     out = np.full((slot.size, 3), np.nan)
     F = Xt.shape[1]
     r = _nearest_seen(O[:, todo].T, f, slot)
@@ -210,27 +221,27 @@ def _rigid(Xt, O, todo, ranked, slot, f):
     d = _dist(Xt[cand, ur[:, None]], Xt[todo[us], ur][:, None])
     seen_r = valid & O[ur[:, None], cand]
     order = np.argsort(np.where(seen_r, d, np.inf), axis=1, kind="stable")
-    cand = np.take_along_axis(cand, order, axis=1)[pair]
-    avail = np.take_along_axis(seen_r, order, axis=1)[pair] & O[f[:, None], cand]
-    for _, rows, cols in _by_size(_select(avail, RIGID_NEIGHBOURS)):
+    order = order[pair]
+    cand = np.take_along_axis(cand[pair], order, axis=1)
+    avail = np.take_along_axis(seen_r[pair] & seen_f, order, axis=1)
+    for _, rows, cols in _by_size(avail, RIGID_NEIGHBOURS):
         nb = np.take_along_axis(cand[rows], cols, axis=1)
         A, B = _gather(Xt, nb, r[rows]), _gather(Xt, nb, f[rows])
         R = _kabsch(A, B)
-        out[rows] = (np.einsum("nij,nj->ni", R, Xt[p[rows], r[rows]] - A.mean(axis=2))
-                     + B.mean(axis=2))
+        out[rows] = (np.einsum("nij,nj->ni", R, Xt[p[rows], r[rows]] - _centroid(A))
+                     + _centroid(B))
     return out
 
 
-def _patterns(O, todo, ranked, slot, f, n):
+def _patterns(O, todo, ranked, slot, seen_f, n):
     """[(k, item, nb, both_slot, both_f)] for the fills from the first ``n`` candidates
     seen in the frame: each pair's item (-1: none; one item per point and neighbour set,
     with at least 2 frames in which the point and its k neighbours are all seen: rows
     ``both_slot``/``both_f``, sorted by item then frame) and the items' (items, k)
-    neighbours."""
-    cand = ranked[slot]
-    avail = (cand >= 0) & O[f[:, None], np.where(cand >= 0, cand, 0)]
+    neighbours; ``seen_f`` (m, _POOL): which of the pair's candidates are seen in its
+    frame."""
     out = []
-    for k, rows, cols in _by_size(_select(avail, n)):
+    for k, rows, cols in _by_size(seen_f, n):
         code = slot[rows] * (1 << _POOL) + (1 << cols).sum(axis=1)
         codes, inverse = np.unique(code, return_inverse=True)
         islot, icols = codes >> _POOL, (codes[:, None] >> np.arange(_POOL)) & 1
@@ -258,8 +269,9 @@ def _template(Xt, ip, nb, bi, bf, iters=3):
     averaged over the frames the point was seen with them (GPA)."""
     n = nb.shape[0]
     A = _gather(Xt, nb[bi], bf)
-    a = Xt[ip[bi], bf] - A.mean(axis=2)
-    A = A - A.mean(axis=2, keepdims=True)
+    c = _centroid(A)
+    a = Xt[ip[bi], bf] - c
+    A = A - c[..., None]
     Z = A[np.searchsorted(bi, np.arange(n), side="right") - 1]
     for _ in range(iters):
         R = _kabsch(A, Z[bi])
@@ -272,7 +284,7 @@ def _affine(Xt, ip, nb, bi, bf):
     fitted (ridge) on the frames the point was seen with its neighbours."""
     n, k = nb.shape
     A = _gather(Xt, nb[bi], bf)
-    c = A.mean(axis=2, keepdims=True)
+    c = _centroid(A)[..., None]
     D = A - c
     y = Xt[ip[bi], bf] - c[:, :, 0]
     start = np.searchsorted(bi, np.arange(n))
@@ -286,13 +298,14 @@ def _fills(Xt, O, todo, ranked, slot, f):
     """(3, m, 3) the rigid, template and affine fills of each (point slot, unseen frame)
     pair (NaN where not made)."""
     out = np.full((3, slot.size, 3), np.nan)
-    out[0] = _rigid(Xt, O, todo, ranked, slot, f)
+    seen_f = (O[:, np.maximum(ranked, 0)] & (ranked >= 0))[f, slot]   # (m, _POOL)
+    out[0] = _rigid(Xt, O, todo, ranked, slot, f, seen_f)
     for n, j in ((RIGID_NEIGHBOURS, 1), (AFFINE_NEIGHBOURS, 2)):
-        for k, item, nb, islot, bi, bf in _patterns(O, todo, ranked, slot, f, n):
+        for k, item, nb, islot, bi, bf in _patterns(O, todo, ranked, slot, seen_f, n):
             rows = np.flatnonzero(item >= 0)
             it = item[rows]
             B = _gather(Xt, nb[it], f[rows])
-            c = B.mean(axis=2)
+            c = _centroid(B)
             if j == 1:
                 Z, z = _template(Xt, todo[islot], nb, bi, bf)
                 out[j, rows] = np.einsum("nij,nj->ni", _kabsch(Z[it], B), z[it]) + c
@@ -353,7 +366,7 @@ def fill_unseen(shapes, observed, points=None):
     if todo.size == 0:
         return filled, spread
     Xt = np.ascontiguousarray(X.transpose(2, 0, 1))                # (P, F, 3)
-    ranked = _candidates(Xt, observed, todo)
+    ranked = _candidates(X, Xt, observed, todo)
     slot, f = np.nonzero(~observed[:, todo].T)                     # (point, unseen frame)
     S = _fills(Xt, observed, todo, ranked, slot, f)
     made = np.isfinite(S).all(axis=(0, 2))

@@ -98,7 +98,7 @@ def normal_matrices(M, patterns):
     return Mf, (patterns.astype(float) @ G).reshape(-1, r, r)
 
 
-def fill_gain(M, observed):
+def fill_gain(M, observed, groups=None):
     """Noise gain of each track's filled entries (unitless, scale-free).
 
     A point's structure column b_p is fitted to the frames that observe it, normal matrix
@@ -111,6 +111,8 @@ def fill_gain(M, observed):
     ----------
     M : (2F, r) ndarray
     observed : (F, P) bool ndarray
+    groups : tuple, optional
+        :func:`mask_groups` of ``observed``, when already computed.
 
     Returns
     -------
@@ -121,11 +123,13 @@ def fill_gain(M, observed):
     if observed.shape[0] * 2 != F2:
         raise ValueError(f"observed must have shape (F, P) with 2F = {F2}; "
                          f"got {observed.shape}")
-    patterns, index = mask_groups(observed)
+    patterns, index = mask_groups(observed) if groups is None else groups
     Mf, A = normal_matrices(M, patterns)
     Ai = np.linalg.pinv(A, hermitian=True)                    # (U, r, r)
-    lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf)           # (U, F, 2, 2)
-    gain = np.sqrt(np.clip(np.linalg.eigvalsh(lev)[..., -1], 0.0, None).max(axis=1))
+    lev = np.einsum("fir,urs,fjs->ufij", Mf, Ai, Mf, optimize=True)   # (U, F, 2, 2)
+    a, b, d = lev[..., 0, 0], lev[..., 0, 1], lev[..., 1, 1]
+    top = 0.5 * (a + d) + np.hypot(0.5 * (a - d), b)          # its larger eigenvalue
+    gain = np.sqrt(np.clip(top, 0.0, None).max(axis=1))
     w = np.linalg.eigvalsh(A)
     gain[w[:, 0] <= 1e-12 * w[:, -1]] = np.inf                # b_p not determined at all
     return gain[index]
@@ -171,7 +175,7 @@ def _solve_structure(Wz, groups, M, t, lam, prior_mean=None, sums=None):
     shift = 0.0 if prior_mean is None else (reg @ prior_mean)[:, None]
     B = np.einsum("prs,sp->rp", inv[index], rhs + shift)
     # b' A_p b = b' (rhs_p + shift) - b' reg b at the solution of (A_p + reg) b = rhs + shift
-    quad = np.sum(B * (rhs + shift)) - np.einsum("rp,rs,sp->", B, reg, B)
+    quad = np.sum(B * (rhs + shift)) - np.sum(B * (reg @ B))
     data = ww - 2.0 * t @ row_sum + (t * t) @ n_rows - 2.0 * np.sum(B * rhs) + quad
     return B, max(float(data), 0.0)
 
@@ -302,9 +306,9 @@ def factorise_lagged(Wz, obs, rank, copies, *, lam_fraction=LAM_FRACTION, tol=1e
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
     Hz, obs_h = copies.lag(Wz), copies.lag(obs, mask=True)
-    M, B, t, lam, cost, converged = _factorise(Hz, obs_h, r, lam_fraction, tol, max_iter)
-    gain_h = fill_gain(M, obs_h)
-    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN)
+    M, B, t, lam, cost, converged, gain_h = _factorise(Hz, obs_h, r, lam_fraction, tol,
+                                                       max_iter)
+    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN, mask_groups(obs_h))
     fit = M @ B + t[:, None]
     fit = copies.mean(fit, Wz.shape)                          # mean of each entry's copies
     j = copies.lags.index(0)
@@ -314,13 +318,14 @@ def factorise_lagged(Wz, obs, rank, copies, *, lam_fraction=LAM_FRACTION, tol=1e
                       history=dict(cost=np.asarray(cost)), lam=lam, M=M, B=B, t=t)
 
 
-def _posterior_structure(Wz, obs, M, t, B, determined):
+def _posterior_structure(Wz, obs, M, t, B, determined, groups):
     """Every b_p again, under the prior the determined tracks give (empirical Bayes).
 
     ``b_p ~ N(mu, S)`` with mu, S the mean and covariance of the determined tracks' b_p,
     and white noise of the variance of their residuals: ``b_p = (A_p + sigma^2 S^-1)^-1
     (M_p'(w_p - t_p) + sigma^2 S^-1 mu)``. A long track is unchanged (its A_p dominates);
-    a short one falls back towards the typical point where its frames say nothing.
+    a short one falls back towards the typical point where its frames say nothing;
+    ``groups``: :func:`mask_groups` of ``obs``.
     Returns B unchanged when fewer than ``PRIOR_SAMPLES * r`` tracks are determined: the
     r x r covariance S needs many more samples than dimensions (MoCap: 41 markers at
     r = 3K = 30-36, where the prior made drink's uniform case worse, 0.0089 -> 0.0107).
@@ -333,11 +338,12 @@ def _posterior_structure(Wz, obs, M, t, B, determined):
     sigma2 = float(np.mean(res ** 2))
     mu = B[:, determined].mean(axis=1)
     prec = sigma2 * np.linalg.pinv(np.cov(B[:, determined]), hermitian=True)
-    return _solve_structure(Wz, mask_groups(obs), M, t, prec, prior_mean=mu)[0]
+    return _solve_structure(Wz, groups, M, t, prec, prior_mean=mu)[0]
 
 
 def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
-    """Rank-r factorisation of the observed entries. ``(M, B, t, lam, costs, converged)``."""
+    """Rank-r factorisation of the observed entries. ``(M, B, t, lam, costs, converged,
+    gain)``, ``gain`` the :func:`fill_gain` of every track under the final M."""
     P = obs.shape[1]
     o2 = np.repeat(obs, 2, axis=0)
     t = Wz.sum(axis=1) / o2.sum(axis=1)
@@ -349,7 +355,8 @@ def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
     root = np.sqrt(s)
     M, B = U * root, root[:, None] * Vt
     scale = 0.5 * float(np.sum(Z * Z))
-    core = fill_gain(M, obs) <= MAX_GAIN
+    groups = mask_groups(obs)
+    core = fill_gain(M, obs, groups) <= MAX_GAIN
     if core.sum() <= r:
         core[:] = True
     cost, converged = [], False
@@ -359,10 +366,11 @@ def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
         M, t, c, converged = _alternate(Wz[:, core], obs[:, core], M, t, lam, tol,
                                         max_iter - len(cost), scale)
         cost += c
-        new = fill_gain(M, obs) <= MAX_GAIN
+        gain = fill_gain(M, obs, groups)                      # under the final M at the end
+        new = gain <= MAX_GAIN
         if new.sum() <= r or np.array_equal(new, core) or len(cost) >= max_iter:
             break
         core = new
-    B = _solve_structure(Wz, mask_groups(obs), M, t, lam)[0]
-    return M, B, t, lam, cost, converged
+    B = _solve_structure(Wz, groups, M, t, lam)[0]
+    return M, B, t, lam, cost, converged, gain
 
