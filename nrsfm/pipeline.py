@@ -78,9 +78,9 @@ class Reconstruction:
     fill_spread : (P,) ndarray or None
         Where the :attr:`undetermined` points were filled from their neighbours
         (``MeasurementSettings.fill = "neighbours"``;
-        :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, the spread
-        of its neighbour fills in units of the shapes' RMS radius (larger: less reliable;
-        NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's
+        :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, how far its
+        four fills stray from their median in units of the shapes' RMS radius (larger:
+        less reliable; NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's
         own fill.
     """
 
@@ -126,9 +126,9 @@ class Reconstruction:
     def unreliable(self):
         """(P,) bool: tracks whose 3D in the frames they were not seen in may be far off:
         :attr:`undetermined` ones, except those filled from their neighbours
-        (``MeasurementSettings.fill = "neighbours"``, the default) whose neighbour fills
-        agree to within :data:`nrsfm.stages.fill.SPREAD_MAX` of the shapes' RMS radius
-        (:attr:`fill_spread`); all False for complete input."""
+        (``MeasurementSettings.fill = "neighbours"``, the default) whose fills agree (stray
+        from their median by at most :data:`nrsfm.stages.fill.SPREAD_MAX` of the shapes'
+        RMS radius, :attr:`fill_spread`); all False for complete input."""
         if self.fill_spread is None:
             return self.undetermined
         return self.undetermined & ~(self.fill_spread <= SPREAD_MAX)

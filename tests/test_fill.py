@@ -203,7 +203,9 @@ def _ref_fills(X, observed, p, ranked):
 
 
 def _ref_fill_unseen(X, observed, points):
-    """The per-point loop of ``fill_unseen`` before it was batched (its definition)."""
+    """The per-point loop of ``fill_unseen`` before it was batched (its definition; the
+    reliability: the RMS over the unseen frames of the median distance of the four fills
+    to their median)."""
     filled, spread = X.copy(), np.full(X.shape[2], np.nan)
     radius = np.sqrt(np.mean(np.sum((X - X.mean(axis=2, keepdims=True)) ** 2, axis=1)))
     todo = ~observed.all(axis=0) & observed.any(axis=0) & points
@@ -213,8 +215,10 @@ def _ref_fill_unseen(X, observed, points):
         if not made.any():
             continue
         S, frames = S[:, made], np.flatnonzero(made)
-        filled[frames, :, p] = np.median(np.concatenate([S, X[frames, :, p][None]]), axis=0)
-        spread[p] = np.sqrt(np.mean(np.sum(S.var(axis=0), axis=1))) / radius
+        four = np.concatenate([S, X[frames, :, p][None]])                  # (4, frames, 3)
+        filled[frames, :, p] = np.median(four, axis=0)
+        stray = np.median(np.linalg.norm(four - filled[frames, :, p], axis=2), axis=0)
+        spread[p] = np.sqrt(np.mean(stray ** 2)) / radius
     return filled, spread
 
 

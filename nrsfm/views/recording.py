@@ -13,7 +13,7 @@ Entity paths (timeline in brackets)
   ``/world/shapes/estimate/skeleton`` LineStrips3D where the sequence has edges [frame]
 * ``/world/shapes/filled`` Points3D, with missing data: the points not observed in the
   frame (their 3D is a fill), larger, coloured by their fill's reliability: for a point
-  filled from its neighbours, the spread of its neighbour fills
+  filled from its neighbours, how far its fills stray from their median
   (``Reconstruction.fill_spread``: yellow at 0, orange at ``SPREAD_MAX`` where it becomes
   ``unreliable``, red at twice that and above); for the others their fill's noise gain
   (``Reconstruction.fill_gain``: yellow at 1, orange at ``MAX_GAIN`` where a track becomes
@@ -83,9 +83,9 @@ def fill_colors(gain, spread=None):
     """(n, 4) uint8 from yellow (reliable) through orange (the flag's threshold) to red,
     for the points of :func:`_log_filled`: by the fill gain (yellow at 1, orange at
     ``MAX_GAIN``, red at ``MAX_GAIN^2`` and above, log scale), or where ``spread`` is
-    finite (a point filled from its neighbours) by that spread (yellow at 0, orange at
-    ``SPREAD_MAX``, red at ``2 SPREAD_MAX`` and above): the spread predicts a fill's error
-    better than the gain (Spearman .78 - .84 against .32 - .41, docs/missing_data_scale.md)."""
+    finite (a point filled from its neighbours) by that reliability (yellow at 0, orange
+    at ``SPREAD_MAX``, red at ``2 SPREAD_MAX`` and above): it predicts a fill's error
+    better than the gain (docs/missing_data_scale.md)."""
     from ..stages.completion import MAX_GAIN
     from ..stages.fill import SPREAD_MAX
 
