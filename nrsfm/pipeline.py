@@ -214,7 +214,7 @@ class Reconstruction:
                          f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
                          f"tracks undetermined (seen in too few frames: their 3D is an "
                          f"extrapolation), {int(self.unreliable.sum())} of them unreliable "
-                         f"(their fills from different neighbours disagree)")
+                         f"(the fills made from their neighbours and the model disagree)")
         if self.diagnostics is not None:            # notes need no action; flags warned
             lines += [f"  note: {n}" for n in self.diagnostics.notes]
             lines += [f"  WARNING: {f}" for f in self.diagnostics.flags]
