@@ -99,6 +99,13 @@ def project_to_so3_batch(A, min_gap=1e-4, max_iter=30):
     return out.reshape(A.shape)
 
 
+def _cofactor_rows(m):
+    """(3, 3, n) cofactor matrices of the (3, 3, n) matrices m (row i: the cross product of
+    the other two rows, in cyclic order)."""
+    return np.stack([np.cross(m[1], m[2], axis=0), np.cross(m[2], m[0], axis=0),
+                     np.cross(m[0], m[1], axis=0)])
+
+
 def _so3_closed_form(M, min_gap, max_iter):
     """(9, n) rotations of the (9, n) matrices M (row-major entries) by
     :func:`project_to_so3_batch`'s formula, and where it holds (n,) bool."""
@@ -106,8 +113,7 @@ def _so3_closed_form(M, min_gap, max_iter):
     M = M / np.where(big > 0, big, 1.0)                            # entries in [-1, 1]
     m = M.reshape(3, 3, -1)
     C = np.einsum("kin,kjn->ijn", m, m)                            # A' A
-    cof = np.stack([np.cross(m[1], m[2], axis=0), np.cross(m[2], m[0], axis=0),
-                    np.cross(m[0], m[1], axis=0)])                 # cofactor matrix
+    cof = _cofactor_rows(m)
     det = np.einsum("in,in->n", m[0], cof[0])
     t = C[0, 0] + C[1, 1] + C[2, 2]
     e2 = (C[0, 0] * C[1, 1] - C[0, 1] ** 2 + C[0, 0] * C[2, 2] - C[0, 2] ** 2
@@ -129,8 +135,7 @@ def _so3_closed_form(M, min_gap, max_iter):
         AC = np.einsum("ikn,kjn->ijn", m, C)
         R = ((lam * lam - I2) * m + lam * cof - AC) / den
         ok = done & (den > min_gap * lam ** 3) & (big > 0)
-        cof = np.stack([np.cross(R[1], R[2], axis=0), np.cross(R[2], R[0], axis=0),
-                        np.cross(R[0], R[1], axis=0)])
+        cof = _cofactor_rows(R)
         R += cof / np.einsum("in,in->n", R[0], cof[0])             # one polar Newton step:
         R *= 0.5                                                   # orthogonal to rounding
     return R.reshape(9, -1), ok

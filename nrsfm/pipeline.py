@@ -80,8 +80,8 @@ class Reconstruction:
         (``MeasurementSettings.fill = "neighbours"``;
         :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, how far its
         four fills stray from their median in units of the shapes' RMS radius (larger:
-        less reliable; NaN for the points not filled so). :attr:`shape_stage` keeps the shape stage's
-        own fill.
+        less reliable; NaN for the points not filled so). :attr:`shape_stage` keeps the
+        shape stage's own fill.
     """
 
     rotations: np.ndarray

@@ -306,9 +306,10 @@ def factorise_lagged(Wz, obs, rank, copies, *, lam_fraction=LAM_FRACTION, tol=1e
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1; got {max_iter}")
     Hz, obs_h = copies.lag(Wz), copies.lag(obs, mask=True)
-    M, B, t, lam, cost, converged, gain_h = _factorise(Hz, obs_h, r, lam_fraction, tol,
-                                                       max_iter)
-    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN, mask_groups(obs_h))
+    groups = mask_groups(obs_h)
+    M, B, t, lam, cost, converged, gain_h = _factorise(Hz, obs_h, groups, r, lam_fraction,
+                                                       tol, max_iter)
+    B = _posterior_structure(Hz, obs_h, M, t, B, gain_h <= MAX_GAIN, groups)
     fit = M @ B + t[:, None]
     fit = copies.mean(fit, Wz.shape)                          # mean of each entry's copies
     j = copies.lags.index(0)
@@ -341,9 +342,10 @@ def _posterior_structure(Wz, obs, M, t, B, determined, groups):
     return _solve_structure(Wz, groups, M, t, prec, prior_mean=mu)[0]
 
 
-def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
-    """Rank-r factorisation of the observed entries. ``(M, B, t, lam, costs, converged,
-    gain)``, ``gain`` the :func:`fill_gain` of every track under the final M."""
+def _factorise(Wz, obs, groups, r, lam_fraction, tol, max_iter):
+    """Rank-r factorisation of the observed entries (``groups``: :func:`mask_groups` of
+    ``obs``). ``(M, B, t, lam, costs, converged, gain)``, ``gain`` the :func:`fill_gain` of
+    every track under the final M."""
     P = obs.shape[1]
     o2 = np.repeat(obs, 2, axis=0)
     t = Wz.sum(axis=1) / o2.sum(axis=1)
@@ -355,7 +357,6 @@ def _factorise(Wz, obs, r, lam_fraction, tol, max_iter):
     root = np.sqrt(s)
     M, B = U * root, root[:, None] * Vt
     scale = 0.5 * float(np.sum(Z * Z))
-    groups = mask_groups(obs)
     core = fill_gain(M, obs, groups) <= MAX_GAIN
     if core.sum() <= r:
         core[:] = True
