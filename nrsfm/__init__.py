@@ -7,14 +7,11 @@ Layers and data flow: ``docs/architecture.md``.
 from .diagnostics import NRSfMWarning
 from .metrics import e3d, e3d_akhter, rotation_error
 from .pipeline import Reconstruction, reconstruct
-from .settings import (METHODS, AdmmSettings, BilinearSettings, ClosedFormSettings,
-                       ConstrainedSettings, MeasurementSettings, PseudoInverseSettings,
-                       RotationSettings, Settings, ShapeSettings, method_settings)
+from .settings import (METHODS, AdmmSettings, BilinearSettings, MeasurementSettings,
+                       RotationSettings, Settings)
 
 __version__ = "0.1.0"
 
-__all__ = ["METHODS", "AdmmSettings", "BilinearSettings", "ClosedFormSettings",
-           "ConstrainedSettings", "MeasurementSettings", "NRSfMWarning",
-           "PseudoInverseSettings", "Reconstruction", "RotationSettings", "Settings",
-           "ShapeSettings", "e3d", "e3d_akhter", "method_settings", "reconstruct",
-           "rotation_error", "__version__"]
+__all__ = ["METHODS", "AdmmSettings", "BilinearSettings", "MeasurementSettings",
+           "NRSfMWarning", "Reconstruction", "RotationSettings", "Settings", "e3d",
+           "e3d_akhter", "reconstruct", "rotation_error", "__version__"]

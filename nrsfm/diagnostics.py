@@ -265,9 +265,8 @@ def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplificati
         if flags or rotation_stage is None:
             flags.insert(0, rank_msg)
         else:
-            k_eff = rotation_stage.info.get("effective_K")
-            notes.append(text("N-rank-deficient", rank=rank, r=r) if k_eff is None else
-                         text("N-rank-deficient-subspace", rank=rank, r=r, k_eff=k_eff, K=K))
+            notes.append(text("N-rank-deficient-subspace", rank=rank, r=r,
+                              k_eff=rotation_stage.effective_K, K=K))
     return Diagnostics(signals=sig, flags=flags, notes=notes)
 
 
@@ -276,7 +275,7 @@ def _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes):
     random starts reach a lower cost (a failed search), a note otherwise (the rank-3K model
     does not fit W exactly, as with real shapes). Returns (cost, ratio)."""
     F = M_hat.shape[0] // 2
-    cost = float(rotation_stage.info["corrective_costs"][0])
+    cost = float(rotation_stage.search.costs[0])
     pred = predicted_triplet_cost(M_hat, rotation_stage.G[0], s, sigma)
     # noise-free data: a small absolute floor keeps the ratio finite and meaningful
     ratio = cost / max(pred, COST_FLOOR_PER_FRAME * F)
@@ -314,15 +313,11 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
     depth signs, the cameras' spread, the depth sensitivity and the transpose test."""
     twoF, P = W.shape
     F = twoF // 2
-    info = rotation_stage.info
     cost, ratio = _cost_signals(K, s, sigma, M_hat, rotation_stage, seed, sig, flags, notes)
-    search = info.get("corrective_search")
-    if search:
-        sig["triplet_hits"] = int(search["hits"])
-        sig["triplet_starts"] = int(search["n_starts"])
-        if search["hits"] < 2:
-            flags.append(text("W-triplet-unconfirmed", hits=search["hits"],
-                              n_starts=search["n_starts"]))
+    search = rotation_stage.search
+    sig["triplet_hits"], sig["triplet_starts"] = search.hits, search.n_starts
+    if search.hits < 2:
+        flags.append(text("W-triplet-unconfirmed", hits=search.hits, n_starts=search.n_starts))
     kept = float(np.mean(rotation_stage.kept))
     sig["kept_fraction"] = kept
     if rotation_stage.kept.shape[0] > 1 and kept < KEPT_MIN:
@@ -341,11 +336,11 @@ def _rotation_signals(W, K, s, sigma, M_hat, rotation_stage, seed, full_rank, si
     if sfrac > SIGN_FRACTION_MAX:
         # cameras that jump by more than 90 degrees leave the depth sign of a frame to the
         # smoothness rule, which cannot decide it; alone that is the orthographic mirror
-        # ambiguity (a random camera per frame: e3d .005, docs/rotation_stage.md section 9),
+        # ambiguity (a random camera per frame: e3d .005),
         # with other flags, or a W of rank below 3K whose triplet does not fit it at the
         # noise level, a sign of wrong rotations (a deforming planar object: Dai's cost
         # 8e5 x its prediction, e3d .73; shark on a random camera, rank 5 < 9 and an exact
-        # triplet, e3d 3e-8: the mirror ambiguity alone, section 12)
+        # triplet, e3d 3e-8: the mirror ambiguity alone)
         jumps = dict(n=int(rotation_stage.sign_from_smoothness.sum()), F=F,
                      frac_max=SIGN_FRACTION_MAX)
         wrong = flags or (not full_rank and ratio > COST_RATIO_MAX)

@@ -4,7 +4,8 @@
 its typed settings (:mod:`nrsfm.settings`):
 
     W --check--> [completion] --> measure (centre, scale, rank-3K SVD)
-      --> rotations (RotationSettings) --> shape (ShapeSettings) --> diagnostics
+      --> rotations (RotationSettings) --> shape (BilinearSettings / AdmmSettings)
+      --> diagnostics --> [fill of the points not seen]
 """
 
 from __future__ import annotations
@@ -20,12 +21,12 @@ import numpy as np
 
 from .diagnostics import NRSfMWarning, diagnose
 from .metrics import depth_amplification
-from .settings import METHODS, Settings, method_settings
+from .settings import KEYWORDS, METHODS, Settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import SPREAD_MAX, fill_unseen
 from .stages.measurement import Factorization, measure, power_of_two_scale
-from .stages.selection import shape_for_rotations
-from .stages.shape import ShapeResult
+from .stages.rotations import RotationResult, estimate_rotations
+from .stages.shape import ShapeResult, solve_pseudo_inverse, solve_shape
 from .validation import blas_threads, check_problem
 
 __all__ = ["METHODS", "Reconstruction", "reconstruct"]
@@ -52,7 +53,7 @@ class Reconstruction:
         ``||W||_F / 170``: the stages ran on ``W / scale`` (:mod:`nrsfm.stages.measurement`).
     factorization : Factorization
         Rank-3K SVD of ``W / scale`` (``M_hat``, ``B_hat``, singular values).
-    rotation_stage : object or None
+    rotation_stage : RotationResult or None
         The rotation stage's result (triplets G^k, per-triplet rotations R^k,
         registration, filtering, averaging), None when rotations were given.
     shape_stage : ShapeResult
@@ -60,8 +61,9 @@ class Reconstruction:
         units of ``W / scale``.
     X_init : (F, 3, P) ndarray
         Pseudo-inverse shape ``pinv(R) W`` in the input's units.
-    params : dict
-        Every setting used (``params["settings"]``: the typed :class:`nrsfm.settings.Settings`).
+    settings : Settings
+        Every setting of the run.
+    seed : int
     timings : dict
         Seconds per stage.
     diagnostics : nrsfm.diagnostics.Diagnostics or None
@@ -93,9 +95,10 @@ class Reconstruction:
     scale: float
     factorization: Factorization
     X_init: np.ndarray
-    rotation_stage: object = None
+    settings: Settings
+    seed: int = 0
+    rotation_stage: RotationResult = None
     shape_stage: ShapeResult = None
-    params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     diagnostics: object = None
     observed: np.ndarray = None
@@ -238,63 +241,45 @@ def _timed(timings, name):
     timings[name] = time.perf_counter() - t0
 
 
-def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=None,
-                shape_options=None, shape_solver=None, progress=False,
-                blas_thread_limit=1, missing=None, settings=None):
+def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing=None,
+                settings=None, seed=0, progress=False, blas_thread_limit=1):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
+
+    One run is configured one way: the keywords ``method``, ``shape_solver`` and
+    ``missing`` (each one field of :class:`nrsfm.Settings`, :data:`nrsfm.settings.KEYWORDS`),
+    or ``settings=`` with every setting.
 
     Parameters
     ----------
     W : (2F, P) or (F, 2, P) array_like
         Measurements: rows ``x_f, y_f`` interleaved, or per-frame tracks. Rows are
-        centred here (per-frame translation is removed).
+        centred here (per-frame translation is removed). NaN (or the mask of a
+        ``numpy.ma.MaskedArray``) marks a point not seen in a frame.
     K : int
         Number of shape bases, ``1 <= K`` and ``3K <= min(2F, P - 1)``.
     method : {"organic", "bmm", "wnn", "pseudo_inverse"}, optional
         ``organic`` (default): all K corrective triplets, registered, filtered and
-        L1-averaged rotations; shape by the partial-sum weighted nuclear norm (N = 1),
-        minimised by ``shape_solver``.
-        ``bmm``: Dai et al.'s baseline (first triplet, plain nuclear norm).
+        L1-averaged rotations; shape by the partial-sum weighted nuclear norm (Eq. 10).
+        ``bmm``: Dai et al.'s baseline (first triplet, plain nuclear norm, Eq. 7).
         ``wnn``: the averaged rotations with a weighted nuclear norm on every singular
-        value (N = 0). ``pseudo_inverse``: rank-K truncation of ``pinv(R) W``.
+        value (Eq. 8). ``pseudo_inverse``: rank-K truncation of ``pinv(R) W``.
     rotations : (F, 3, 3) array_like, optional
         Known camera rotations; the rotation stage is then skipped.
+    shape_solver : {"bilinear", "admm"}, optional
+        ``bilinear`` (default): the factored weighted nuclear norm minimised to a
+        stationary point; ``admm``: the paper's continuation ADMM.
+    missing : {"complete", "error"}, optional
+        Missing observations: complete W by low-rank completion and run on it (default;
+        the result keeps ``completion``, ``observed`` and the tracks the data leave
+        ``undetermined``), or refuse.
+    settings : nrsfm.Settings, optional
+        Every setting, typed; then none of the three keywords above.
     seed : int
         Seed for every random choice (results are deterministic for a given seed).
-    rotation_options : dict, optional
-        Fields of :class:`nrsfm.settings.RotationSettings` that override the method's
-        preset (not ``strategy``, which the method fixes; research strategies run with
-        ``settings=nrsfm.research.research_settings(...)``).
-    shape_options : dict, optional
-        Fields of the solver's settings (:class:`nrsfm.settings.BilinearSettings`,
-        :class:`~nrsfm.settings.AdmmSettings`, :class:`~nrsfm.settings.ClosedFormSettings`,
-        :class:`~nrsfm.settings.ConstrainedSettings`).
-    shape_solver : str, optional
-        A solver registered in :data:`nrsfm.stages.shape.SOLVERS`: ``bilinear`` (default): the factored weighted nuclear norm minimised to a
-        stationary point (:mod:`nrsfm.stages.shape.bilinear`); ``admm``: the paper's
-        continuation ADMM (:mod:`nrsfm.stages.shape.admm`); ``closed_form``: the exact
-        rank-K solution (no prior); ``constrained``: the prior's norm with W fitted to
-        within its noise (:mod:`nrsfm.stages.shape.constrained`, ``docs/shape_constrained.md``).
-        See ``docs/shape_stage.md`` for the measurements behind the default.
     progress : bool or callable
         Print stage progress to stderr (or call ``progress(message)``).
     blas_thread_limit : int or None
-        BLAS threads while the solvers run (the matrices are small: one is fastest).
-    missing : {"complete", "error"}
-        What to do with missing observations: NaN in W or tracks (a point counts as missing
-        in a frame when either coordinate is NaN), or the mask of a
-        ``numpy.ma.MaskedArray``. ``complete`` (default): fill W by low-rank completion
-        (:func:`nrsfm.stages.completion.complete`) and run the pipeline on it; the result
-        keeps ``completion``, ``observed``, ``W_completed`` and the tracks the data leave
-        ``undetermined``. The completion is ``settings.measurement.completion``, by
-        default ``"auto"``: soft-impute of the time-lagged W where the lags rule asks for
-        lags (few points per frame for the rank 3K: MoCap-sized W), the rank-3K
-        factorisation of the observed entries elsewhere (dense tracks);
-        ``"factorisation"`` or ``"soft_impute"`` force one. ``error``: refuse.
-    settings : nrsfm.settings.Settings, optional
-        Every setting, typed. It replaces ``method``, ``shape_solver``, ``missing``,
-        ``rotation_options`` and ``shape_options``: giving any of them beside it is a
-        ValueError (put them into the settings instead).
+        BLAS threads while the stages run (the matrices are small: one is fastest).
 
     Returns
     -------
@@ -304,18 +289,27 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
     ------
     ValueError
         Bad shapes, non-finite input, K out of range (including 3K above
-        ``min(2F, P - 1)``, the largest rank of a row-centred W), unknown method, solver
-        or option, an option beside ``settings=``, bad rotations; missing observations with ``missing="error"``; a frame
-        or point with too few observations to be determined (named in the message).
+        ``min(2F, P - 1)``, the largest rank of a row-centred W), an unknown method, solver
+        or rule, a keyword beside ``settings=``, bad rotations, missing observations with
+        ``missing="error"``, a frame or point with too few observations (named).
 
     Warns
     -----
     nrsfm.NRSfMWarning
         When a quality signal of the run crosses its threshold (``result.diagnostics``).
+
+    Examples
+    --------
+    >>> import nrsfm, data_tools
+    >>> seq = data_tools.make_synthetic(F=40, P=30, K=2, seed=0)
+    >>> res = nrsfm.reconstruct(seq.W, 2)
+    >>> res.rotations.shape, res.shapes.shape
+    ((40, 3, 3), (40, 3, 30))
+    >>> bool(res.errors(seq.shapes)["e3d"] < 1e-3)
+    True
     """
     settings = _settings(settings, method=method, shape_solver=shape_solver,
-                         missing=missing, rotation_options=rotation_options,
-                         shape_options=shape_options)
+                         missing=missing)
     # every input check before any computation (the completion can take a while)
     W, K, rotations = check_problem(W, K, rotations, settings.measurement.missing)
     say = _progress_printer(progress)
@@ -334,17 +328,19 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
         rotation_stage = None
         if rotations is None:
             with _timed(timings, "rotations"):
-                rotation_stage = settings.rotation.estimate(fact.M_hat, K, seed, say)
+                rotation_stage = estimate_rotations(
+                    fact.M_hat, K, settings.rotation, single=METHODS[settings.method].single,
+                    seed=seed, progress=say)
             rotations = rotation_stage.rotations
         with _timed(timings, "shape"):
-            rotations, shape_stage = shape_for_rotations(meas.Wn, rotations, K, rotation_stage,
-                                                         settings.shape, say)
+            shape_stage = (solve_pseudo_inverse(meas.Wn, rotations, K) if settings.shape is None
+                           else solve_shape(meas.Wn, rotations, K, settings.prior,
+                                            settings.shape, say))
     amp = (depth_amplification(rotations, shape_stage.shapes, K)
-           if settings.shape.solver.estimates_depth else None)
+           if settings.shape is not None else None)
     diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
     if diagnostics.flags:
         warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
-    params = settings.params(K, seed, meas.scale, rotations_given=rotation_stage is None)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
         raise ValueError(f"the shapes overflow in the input's units (max|W| = "
@@ -357,25 +353,23 @@ def reconstruct(W, K, method=None, rotations=None, *, seed=0, rotation_options=N
     return Reconstruction(rotations=rotations, shapes=shapes, method=settings.method, K=K,
                           W=meas.W, row_means=meas.row_means, scale=meas.scale,
                           factorization=fact, X_init=meas.restore(shape_stage.X_init),
-                          rotation_stage=rotation_stage, shape_stage=shape_stage,
-                          params=params, timings=timings, diagnostics=diagnostics,
+                          settings=settings, seed=seed, rotation_stage=rotation_stage,
+                          shape_stage=shape_stage, timings=timings, diagnostics=diagnostics,
                           observed=None if completion is None else completion.observed,
                           W_completed=None if completion is None else completion.W,
                           completion=completion, fill_spread=spread)
 
 
 def _settings(settings, **keywords):
-    """The run's Settings: ``settings`` as given, or built by :func:`method_settings` from
-    the keywords given (its defaults for those that are None); a keyword beside
-    ``settings`` is refused."""
+    """The run's Settings: ``settings`` as given, or :meth:`Settings.from_keywords` of the
+    keywords given; a keyword beside ``settings`` is refused (it would be ignored)."""
+    given = {k: v for k, v in keywords.items() if v is not None}
     if settings is None:
-        return method_settings(**{k: v for k, v in keywords.items() if v is not None})
+        return Settings.from_keywords(**given)
     if not isinstance(settings, Settings):
-        raise ValueError(f"settings must be an nrsfm.settings.Settings; got {settings!r}")
-    beside = sorted(k for k, v in keywords.items() if v is not None)
-    if beside:
-        raise ValueError(f"settings= replaces {', '.join(sorted(keywords))}; got "
-                         f"{', '.join(beside)} beside it, which would be ignored: put them "
-                         f"into the settings (e.g. dataclasses.replace(settings.shape, "
-                         f"solver=...))")
+        raise ValueError(f"settings must be an nrsfm.Settings; got {settings!r}")
+    if given:
+        raise ValueError(f"settings= replaces the keywords {', '.join(KEYWORDS)}; got "
+                         f"{', '.join(sorted(given))} beside it, which would be ignored: "
+                         f"set them in the settings ({', '.join(KEYWORDS.values())})")
     return settings

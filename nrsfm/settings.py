@@ -1,84 +1,50 @@
-"""Every setting of one ``reconstruct`` run, composed from the stages' own settings, and the
-presets of the four methods.
+"""Every setting of one ``reconstruct`` run: the method, and the stages' own settings.
 
-Each stage owns its settings class, its validation and its choice lists:
+Each stage owns its settings class, its fields and their validation:
 
-* :class:`MeasurementSettings`: what to do with missing observations, and how to complete
-  them (the completion stage).
-* :class:`~nrsfm.stages.rotations.RotationSettings` (:mod:`nrsfm.stages.rotations`): the
-  ``organic`` and ``bmm`` rotation stage. Research variants:
-  :mod:`nrsfm.research`.
-* :class:`~nrsfm.stages.shape.ShapeSettings` (:mod:`nrsfm.stages.shape`): the prior and one
-  solver's settings (:class:`~nrsfm.stages.shape.bilinear.BilinearSettings`,
-  :class:`~nrsfm.stages.shape.admm.AdmmSettings`, ...; the registry
-  :data:`nrsfm.stages.shape.SOLVERS`).
+* :class:`MeasurementSettings` (:mod:`nrsfm.stages.completion`): missing observations;
+* :class:`RotationSettings` (:mod:`nrsfm.stages.rotations`): the triplet search, windows,
+  filter and average;
+* :class:`BilinearSettings` or :class:`AdmmSettings` (:mod:`nrsfm.stages.shape`): the
+  shape solver and its constants.
 
-This module composes them: :class:`Settings` (``Settings(method="bmm")`` is the BMM
-baseline: a method is a preset, not a label) and :func:`method_settings`, the dict form
-that ``reconstruct(method=..., shape_solver=..., rotation_options=..., shape_options=...)``
-uses.
+The method decides what the stages compute (:data:`METHODS`): how many triplets and which
+prior. One run is configured one way: ``reconstruct(W, K, **keywords)``, each keyword one
+field of :class:`Settings` (:data:`KEYWORDS`), or ``reconstruct(W, K, settings=...)``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import NamedTuple, Optional, Union
 
 from .stages.completion import MeasurementSettings
 from .stages.rotations import RotationSettings
-from .stages.shape import SOLVERS, ShapeSettings, solver_settings
-from .stages.shape.admm import AdmmSettings
-from .stages.shape.bilinear import BilinearSettings, ClosedFormSettings
-from .stages.shape.constrained import ConstrainedSettings
-from .stages.shape.pseudo_inverse import PseudoInverseSettings
+from .stages.shape import SOLVERS, AdmmSettings, BilinearSettings
 from .validation import check_choice
 
-__all__ = ["AdmmSettings", "BilinearSettings", "ClosedFormSettings", "ConstrainedSettings",
-           "METHODS", "MeasurementSettings", "Method", "PseudoInverseSettings",
-           "RotationSettings", "Settings", "ShapeSettings", "method_settings",
-           "shape_solvers"]
+__all__ = ["KEYWORDS", "METHODS", "AdmmSettings", "BilinearSettings", "MeasurementSettings",
+           "Method", "RotationSettings", "Settings"]
 
 
-# ----------------------------------------------------------------------------- methods
 class Method(NamedTuple):
-    """What a method fixes: its rotation strategy, its shape prior (None: no prior) and,
-    for a method defined by its solver, that solver's name."""
+    """What a method computes: one corrective triplet (``single``) or K averaged, and its
+    shape prior (None: the rank-K truncation of the pseudo-inverse shape, no solver)."""
 
-    strategy: str
+    single: bool
     prior: Optional[str]
-    solver: Optional[str] = None
 
 
-#: method -> what it fixes. The other settings are the stages' defaults.
+#: method -> what it computes
 METHODS = {
-    "organic": Method("organic", "organic"),    # all K triplets, averaged; partial-sum WNN
-    "bmm": Method("bmm", "nuclear"),            # Dai et al.: first triplet, nuclear norm
-    "wnn": Method("organic", "weighted"),       # weighted nuclear norm over all values
-    "pseudo_inverse": Method("organic", None, "pseudo_inverse"),   # rank-K pinv(R) W
+    "organic": Method(False, "organic"),        # the paper: K triplets averaged, Eq. 10
+    "bmm": Method(True, "nuclear"),             # Dai et al.: the first triplet, Eq. 7
+    "wnn": Method(False, "weighted"),           # every singular value weighted, Eq. 8
+    "pseudo_inverse": Method(False, None),      # rank-K truncation of pinv(R) W (Table 1)
 }
 
-
-def _preset_stages(method):
-    """(RotationSettings, ShapeSettings) of a method's preset."""
-    m = METHODS[method]
-    shape = (ShapeSettings(prior=None, solver=SOLVERS[m.solver]()) if m.solver else
-             ShapeSettings(prior=m.prior))
-    return RotationSettings.preset(m.strategy), shape
-
-
-def _agrees(method, rotation, shape):
-    """Why the stage settings do not make ``method`` (None when they do)."""
-    m = METHODS[method]
-    if rotation.strategy != m.strategy:
-        return f"rotation strategy {rotation.strategy!r} (the method's is {m.strategy!r})"
-    if m.solver is not None and shape.solver.name != m.solver:
-        return f"shape solver {shape.solver.name!r} (the method's is {m.solver!r})"
-    if m.solver is None and shape.solver.name in {s for _, _, s in METHODS.values() if s}:
-        return f"shape solver {shape.solver.name!r} (that is method {shape.solver.name!r})"
-    if shape.solver.uses_prior and shape.prior != m.prior:
-        return f"shape prior {shape.prior!r} (the method's is {m.prior!r})"
-    return None
+#: the rotation fields that a single triplet does not use (``bmm``: nothing to average)
+_AVERAGING = ("window", "delta", "max_iter", "eps")
 
 
 @dataclass(frozen=True)
@@ -87,138 +53,88 @@ class Settings:
 
     Parameters
     ----------
-    method : {"organic", "bmm", "wnn", "pseudo_inverse"} or None
-        A preset (:data:`METHODS`): the stage settings not given are the method's, and the
-        ones given must agree with it (its rotation strategy, its prior; a solver without
-        a prior, such as ``closed_form``, may replace the prior). None: compose freely
-        from the ``organic`` preset's defaults; ``method`` then becomes the preset the
-        stages agree with, or ``"custom"``.
-    measurement : MeasurementSettings, optional
-    rotation : RotationSettings, optional
-        Production or research (:mod:`nrsfm.research`) rotation settings.
-    shape : ShapeSettings, optional
+    method : {"organic", "bmm", "wnn", "pseudo_inverse"}
+        What the stages compute (:data:`METHODS`).
+    measurement : MeasurementSettings
+    rotation : RotationSettings
+    shape : BilinearSettings or AdmmSettings or None
+        The shape solver; None: ``BilinearSettings()``, or no solver for
+        ``pseudo_inverse``.
 
     Raises
     ------
     ValueError
-        Unknown method, a stage setting of the wrong type, or stage settings that are not
-        the named method's (what differs is named).
+        Unknown method, a stage's settings of the wrong type, a shape solver with
+        ``pseudo_inverse`` (it has none), or averaging settings with ``bmm`` (one triplet):
+        nothing given is ignored.
 
     Examples
     --------
-    >>> Settings(method="bmm").rotation.strategy, Settings(method="bmm").shape.prior
-    ('bmm', 'nuclear')
-    >>> Settings(rotation=RotationSettings.preset("bmm")).method
-    'custom'
+    >>> Settings(method="bmm").shape
+    BilinearSettings(rank=None, mu_factor=0.01, mu_noise=5.0, mu=None, min_mu=1e-05, gtol=1e-08, max_iter=3000)
+    >>> Settings(shape=AdmmSettings(N=2)).shape.N
+    2
     """
 
-    method: Optional[str] = None
-    measurement: Optional[MeasurementSettings] = None
-    rotation: Optional[RotationSettings] = None
-    shape: Optional[ShapeSettings] = None
+    method: str = "organic"
+    measurement: MeasurementSettings = MeasurementSettings()
+    rotation: RotationSettings = RotationSettings()
+    shape: Union[BilinearSettings, AdmmSettings, None] = None
 
     def __post_init__(self):
-        if self.method is not None and self.method != "custom":
-            check_choice("method", self.method, METHODS)
-        given = self.method not in (None, "custom")
-        rotation, shape = _preset_stages(self.method if given else "organic")
-        defaults = dict(measurement=MeasurementSettings(), rotation=rotation, shape=shape)
+        check_choice("method", self.method, METHODS)
         for name, cls in (("measurement", MeasurementSettings),
-                          ("rotation", RotationSettings), ("shape", ShapeSettings)):
-            value = getattr(self, name)
-            if value is None:
-                object.__setattr__(self, name, defaults[name])
-            elif not isinstance(value, cls):
-                raise ValueError(f"{name} must be a {cls.__name__}; got {value!r}")
-        if given:
-            why = _agrees(self.method, self.rotation, self.shape)
-            if why is not None:
-                raise ValueError(f"Settings(method={self.method!r}) with {why}: give the "
-                                 f"method's settings, or method=None to compose freely")
-        else:
-            label = next((m for m in METHODS if _agrees(m, self.rotation, self.shape) is None
-                          and type(self.rotation) is RotationSettings), "custom")
-            object.__setattr__(self, "method", label)
+                          ("rotation", RotationSettings)):
+            if not isinstance(getattr(self, name), cls):
+                raise ValueError(f"{name} must be a {cls.__name__}; got "
+                                 f"{getattr(self, name)!r}")
+        if self.method == "pseudo_inverse":
+            if self.shape is not None:
+                raise ValueError(f"method 'pseudo_inverse' has no shape solver; got "
+                                 f"shape={self.shape!r}")
+        elif self.shape is None:
+            object.__setattr__(self, "shape", BilinearSettings())
+        elif not isinstance(self.shape, tuple(SOLVERS.values())):
+            raise ValueError(f"shape must be a BilinearSettings or an AdmmSettings; got "
+                             f"{self.shape!r}")
+        if self.method == "bmm":
+            given = [f for f in _AVERAGING if getattr(self.rotation, f) !=
+                     getattr(RotationSettings(), f)]
+            if given:
+                raise ValueError(f"method 'bmm' uses one triplet: {', '.join(given)} of the "
+                                 f"rotation settings would be ignored")
+
+    @property
+    def prior(self):
+        """The shape prior of the method (None for ``pseudo_inverse``)."""
+        return METHODS[self.method].prior
+
+    @property
+    def shape_solver(self):
+        """The shape solver's name (None for ``pseudo_inverse``)."""
+        return None if self.shape is None else self.shape.name
 
     @classmethod
-    def preset(cls, method="organic"):
-        """The settings of a method (:data:`METHODS`)."""
-        return cls(method=method)
+    def from_keywords(cls, method="organic", shape_solver=None, missing="complete"):
+        """The settings of ``reconstruct``'s keywords (:data:`KEYWORDS`), the stages'
+        defaults elsewhere.
 
-    def params(self, K, seed, scale, rotations_given):
-        """What a run with these settings ran, as plain values (``Reconstruction.params``;
-        ``params["settings"]`` holds the settings themselves)."""
-        shape = self.shape
-        return dict(method=self.method, K=K, seed=seed,
-                    rotation_strategy=None if rotations_given else self.rotation.strategy,
-                    rotation_options=None if rotations_given else
-                    dataclasses.asdict(self.rotation),
-                    shape_prior=shape.prior, shape_solver=shape.solver.name,
-                    shape_options=dataclasses.asdict(shape.solver),
-                    select_rotations=shape.select_rotations and not rotations_given,
-                    scale=scale, rotations_given=rotations_given,
-                    missing=self.measurement.missing,
-                    completion=self.measurement.completion, settings=self)
+        Raises
+        ------
+        ValueError
+            Unknown method, shape solver or missing-data rule (the choices are named).
+        """
+        shape = None
+        if shape_solver is not None:
+            shape = SOLVERS[check_choice("shape_solver", shape_solver, SOLVERS)]()
+        return cls(method=method, shape=shape,
+                   measurement=MeasurementSettings(missing=missing))
 
 
-def shape_solvers():
-    """Names of the registered shape solvers a method can use (``shape_solver=``): every
-    solver in :data:`nrsfm.stages.shape.SOLVERS` but those that are a method of their own."""
-    own = {m.solver for m in METHODS.values()}
-    return [name for name in SOLVERS if name not in own]
+#: ``reconstruct``'s keywords and the :class:`Settings` field each one sets
+KEYWORDS = {
+    "method": "method",
+    "shape_solver": "shape (BilinearSettings() or AdmmSettings())",
+    "missing": "measurement.missing",
+}
 
-
-def method_settings(method="organic", shape_solver="bilinear", rotation_options=None,
-                    shape_options=None, missing="complete"):
-    """The preset of a method, with dict options converted into the typed settings.
-
-    Parameters
-    ----------
-    method : {"organic", "bmm", "wnn", "pseudo_inverse"}
-    shape_solver : str
-        A solver registered in :data:`nrsfm.stages.shape.SOLVERS`. ``pseudo_inverse`` is
-        the method of that name (its shape is the rank-K truncation), so it takes the
-        default ``bilinear`` here or ``pseudo_inverse`` itself.
-    rotation_options : dict, optional
-        Fields of :class:`RotationSettings` that override the method's preset
-        (``strategy``, which the method fixes, is refused: choose the method; research
-        strategies: :func:`nrsfm.research.research_settings`).
-    shape_options : dict, optional
-        Fields of the solver's settings type.
-    missing : {"complete", "error"}
-
-    Returns
-    -------
-    Settings
-
-    Raises
-    ------
-    ValueError
-        Unknown method, solver or option (the known ones are named), or an option the
-        method fixes.
-    """
-    check_choice("method", method, METHODS)
-    rotation, shape = _preset_stages(method)
-    options = dict(rotation_options or {})
-    if "strategy" in options and options["strategy"] != rotation.strategy:
-        raise ValueError(f"rotation strategy {options['strategy']!r} with method "
-                         f"{method!r}: the method fixes the strategy "
-                         f"({rotation.strategy!r}); choose the method (bmm: method='bmm'), "
-                         f"or nrsfm.research.research_settings for a research strategy")
-    fields = {f.name for f in dataclasses.fields(RotationSettings)}
-    unknown = set(options) - fields
-    if unknown:
-        raise ValueError(f"unknown rotation options {sorted(unknown)}; expected some of "
-                         f"{sorted(fields)}")
-    rotation = dataclasses.replace(rotation, **options)
-    if METHODS[method].solver is not None:
-        if shape_solver not in ("bilinear", METHODS[method].solver) or shape_options:
-            raise ValueError(f"method {method!r} is its own shape solver; it takes no "
-                             f"shape_solver ({shape_solver!r}) or shape_options "
-                             f"({sorted(shape_options or {})})")
-    else:
-        solver = solver_settings(shape_solver, shape_options)
-        shape = ShapeSettings(prior=METHODS[method].prior if solver.uses_prior else None,
-                              solver=solver)
-    return Settings(method=method, measurement=MeasurementSettings(missing=missing),
-                    rotation=rotation, shape=shape)

@@ -70,16 +70,6 @@ CATALOG = {
         "3K = 9, reconstructed at the paper's accuracy this way).",
         "none. If `W-shape-not-unique` comes with it, read that entry.",
         dict(rank=5, r=9, k_eff=1, K=3)),
-    "N-rank-deficient": Entry(
-        "note", _NOTE, f"{_DIAG}, `diagnose`",
-        "W has only {rank} independent directions where 3K = {r}, but nothing else in the "
-        "run looks wrong; no action needed unless a warning comes with it",
-        "numerical rank of W below 3K, no diagnostic flags the run, and the rotation stage "
-        "does not report `effective_K` (a research strategy)",
-        "part of the rank-3K model gets no data, yet the triplet search is confirmed and "
-        "fits at the noise level.",
-        "none. If `W-shape-not-unique` comes with it, read that entry.",
-        dict(rank=5, r=9)),
     "N-no-rank-gap": Entry(
         "note", _NOTE, f"{_DIAG}, `diagnose`",
         "the singular values of W fall smoothly through 3K = {r} (s_3K / s_3K+1 = {gap:.4g},"
@@ -108,13 +98,13 @@ CATALOG = {
         "the corrective-triplet search ended in a poor solution: its cost {cost:.3g} is "
         "{ratio:.3g} x what the noise in W explains ({pred:.3g}; warned above {ratio_max}) "
         "and other starts reach {other:.3g}, so the cameras and shapes are likely wrong; try "
-        "more starts (rotation_options max_starts) or another seed",
+        "more starts (RotationSettings max_starts) or another seed",
         "`triplet_cost_ratio` (Dai's cost of the best triplet over the cost the noise level "
         "of W predicts) above `COST_RATIO_MAX` = {COST_RATIO_MAX}, and other random starts "
         "reach a lower cost (`lower_minimum` in `nrsfm/stages/rotations/subspace.py`)",
         "the triplet that turns W's factors into cameras is not the best one: the search "
         "failed, so the rotations and the shapes built on them are unreliable.",
-        "rerun with more starts (`rotation_options=dict(max_starts=...)`, default 40) or "
+        "rerun with more starts (`RotationSettings(max_starts=...)`, default 40) or "
         "another `seed`; if W may be transposed see `W-transposed`.",
         dict(cost=3.1, ratio=16.0, pred=0.19, ratio_max=4.0, other=0.2)),
     "N-model-misfit": Entry(
@@ -152,10 +142,10 @@ CATALOG = {
         "warning", _FLAG, f"{_DIAG}, `_rotation_signals`",
         "only {hits} of {n_starts} starts of the corrective-triplet search reached its best "
         "solution, so it was never confirmed and may be a poor one; try more starts "
-        "(rotation_options max_starts) or another seed",
+        "(RotationSettings max_starts) or another seed",
         "`triplet_hits` (starts that reached the best minimum) below 2",
         "the cameras rest on a minimum found once; it may be a lucky good one or a bad one.",
-        "rerun with more starts (`rotation_options=dict(max_starts=...)`) or another `seed` "
+        "rerun with more starts (`RotationSettings(max_starts=...)`) or another `seed` "
         "and compare.",
         dict(hits=1, n_starts=40)),
     "W-samples-disagree": Entry(
@@ -234,29 +224,28 @@ CATALOG = {
         "gap {gap:.1e}): many rank-{K} shapes fit W equally well and the prior picks one, its "
         "weight raised to min_mu = {min_mu:g} ||W||_F; if the diagnostics warn too, try a "
         "lower K",
-        "the bilinear shape solver with `mu` unset (the default), the closed-form start "
-        "(`init=\"closed_form\"`, rank K): the closed form's (K+1)-th eigenvalue relative to "
+        "the bilinear shape solver with `mu` unset (the default), at rank K: the closed "
+        "form's (K+1)-th eigenvalue relative to "
         "its largest is at most `NULLSPACE_GAP_MIN` = {NULLSPACE_GAP_MIN:g}. The closed form "
         "works in W's column space (at most 3K directions), so a W of rank below 3K alone "
         "does not trigger it (shark, rank 5 < 3K = 9: gap 4.5e-5)",
         "the data leave a family of shapes; the one returned is chosen by the prior (mu at "
         "least `min_mu` ||W||_F, default 1e-5).",
         "none if the diagnostics report no warning (the default run on shark gives this); "
-        "otherwise lower K. To change the pick set `shape_options=dict(min_mu=...)`.",
+        "otherwise lower K. To change the pick set `BilinearSettings(min_mu=...)`.",
         dict(gap=7.6e-33, K=3, min_mu=1e-5)),
     "W-shape-not-unique-mu-given": Entry(
         "warning", "`RuntimeWarning` (CLI: a `nrsfm: warning:` line)",
         "`nrsfm/stages/shape/bilinear.py`, `_balance_mu`",
         "W and these cameras do not determine the shapes on their own (closed-form nullspace "
         "gap {gap:.1e}): many rank-{K} shapes fit W equally well and the result is the one the "
-        "given mu = {mu:g} picks, an arbitrary one if mu = 0 (as with shape_solver "
-        "closed_form); leave mu unset to let the prior choose, or lower K",
-        "as `W-shape-not-unique`, with `mu` given (`shape_options=dict(mu=...)`, or the "
-        "`closed_form` solver, which uses mu = 0)",
+        "given mu = {mu:g} picks, an arbitrary one if mu = 0; leave mu unset to let the "
+        "prior choose, or lower K",
+        "as `W-shape-not-unique`, with `mu` given (`BilinearSettings(mu=...)`)",
         "the returned shape is one member of a family that fits W equally well; with mu = 0 "
         "rounding picks it.",
-        "leave `mu` unset (the default raises it to `min_mu`), use the `bilinear` or `admm` "
-        "solver, or lower K.",
+        "leave `mu` unset (the default raises it to `min_mu`), use the `admm` solver, or "
+        "lower K.",
         dict(gap=7.6e-33, K=3, mu=0.0)),
     "W-completion-cap": Entry(
         "warning", "`RuntimeWarning` (CLI: a `nrsfm: warning:` line)",
@@ -268,7 +257,7 @@ CATALOG = {
         "iteration cap with its change still above tolerance (`Completion.converged` False)",
         "the filled entries are not at the completion's optimum. Measured on MoCap at 30% "
         "missing: e3d capped / uncapped 0.1105 / 0.1098 (pickup), 0.0341 / 0.0319 (drink) "
-        "(`docs/missing_data_scale.md`): usually a small loss.",
+        "(`docs/studies/missing_data.md`): usually a small loss.",
         "compare with the complete tracks only (`nrsfm video --complete-tracks`, or the "
         "columns of W without NaN); the other completion "
         "(`settings.measurement.completion`) may converge.",

@@ -383,11 +383,11 @@ def test_core_does_not_import_data_tools():
     assert offenders == []
 
 
-def test_run_with_the_constrained_shape_solver(tmp_path, good, seq):
-    out = tmp_path / "constrained.npz"
-    assert main(["run", str(good), "-o", str(out), "--shape-solver", "constrained",
+def test_run_with_the_admm_shape_solver(tmp_path, good, seq):
+    out = tmp_path / "admm.npz"
+    assert main(["run", str(good), "-o", str(out), "--shape-solver", "admm",
                  "--given-rotations", "--quiet"]) == 0
     with np.load(out) as z:
         assert z["shapes"].shape == seq.shapes.shape
-        assert float(z["e3d"]) < 1e-6                    # noise-free, true cameras
-        assert "shape_cost" in z.files
+        assert "shape_rho" in z.files                    # the ADMM's penalty schedule ran
+        assert float(z["e3d"]) < 0.1                     # noise-free, true cameras

@@ -160,7 +160,7 @@ def test_lags_rule_and_completion_setting_through_reconstruct():
         s = Settings(measurement=MeasurementSettings(completion=name, lags=(0,)))
         r = nrsfm.reconstruct(Wm, 1, settings=s)
         res[name] = r
-        assert r.completion.lags == (0,) and r.params["settings"].measurement.completion == name
+        assert r.completion.lags == (0,) and r.settings.measurement.completion == name
         assert r.completion.converged
     assert res["factorisation"].completion.method == "factorisation"
     assert res["soft_impute"].completion.method == "soft_impute"

@@ -5,7 +5,6 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import data_tools
-from nrsfm.research import triplets as AB
 from nrsfm.stages import corrective as C
 from nrsfm.stages import relaxation as RX
 from nrsfm.stages.measurement import factorize
@@ -38,28 +37,6 @@ def test_constraint_matrix_matches_definition():
     np.testing.assert_allclose(RX.gram_from_vech(Q[RX.vech_index(3 * K)], 3 * K), Q)
 
 
-@pytest.mark.parametrize("K", [1, 2, 3])
-def test_solution_space_dimension_noise_free(K):
-    M, _ = _M(K)
-    A = RX.constraint_matrix(M)
-    basis, sv = AB.solution_space(A, K)
-    d = 2 * K * K - K
-    assert basis.shape == (3 * K * (3 * K + 1) // 2, d)
-    np.testing.assert_allclose(basis.T @ basis, np.eye(d), atol=1e-10)
-    # A clear gap: the basis is (numerically) in the null space of A.
-    assert np.linalg.norm(A @ basis) < 1e-5 * np.linalg.norm(A)
-    assert sv[-d - 1] > 1e3 * sv[-d]
-
-
-def test_relaxed_gram_admm_matches_cvxpy():
-    M, _ = _M(2, noise=0.01)
-    basis, _ = AB.solution_space(RX.constraint_matrix(M), 2)
-    Qa = AB.relaxed_gram(basis, 2, solver="admm", tol=1e-8)
-    Qc = AB.relaxed_gram(basis, 2, solver="cvxpy")
-    nuc = lambda Q: np.abs(np.linalg.eigvalsh(Q)).sum()
-    assert abs(nuc(Qa) - nuc(Qc)) < 1e-4 * nuc(Qc)
-
-
 def test_jacobian_matches_finite_differences():
     rng = np.random.default_rng(1)
     M, _ = _M(2, noise=0.02)
@@ -82,10 +59,10 @@ def test_jacobian_matches_finite_differences():
 def test_reused_jacobian_gram_reaches_the_same_minimum():
     M, _ = _M(2, noise=0.02)
     G0 = np.random.default_rng(3).standard_normal((6, 3))
-    G, _ = C.refine_triplet(G0, M, tol=1e-14, max_iter=2000)
-    Gr, info = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6,
+    G, _, _ = C.refine_triplet(G0, M, tol=1e-14, max_iter=2000)
+    Gr, _, _ = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6,
                                 reuse=1e-3)
-    Gf, _ = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6)
+    Gf, _, _ = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6)
     Q = C.triplet_cost(Gr, M + 1e-3 * M[::-1]), C.triplet_cost(Gf, M + 1e-3 * M[::-1])
     assert Q[0] == pytest.approx(Q[1], rel=1e-10)
 
@@ -99,14 +76,6 @@ def test_corrective_triplets_exact_noise_free(K):
     assert np.all(np.diff(res.costs) >= 0)
 
 
-def test_lm_and_lbfgs_reach_same_minimum_from_the_same_start():
-    M, _ = _M(2, noise=0.01, seed=3)
-    G0 = C.corrective_triplets(M, 2, seed=0).G[0] + 0.01
-    G1, i1 = C.refine_triplet(G0, M, method="lm")
-    G2, i2 = C.refine_triplet(G0, M, method="lbfgs")
-    assert i1["cost"] <= i2["cost"] * (1 + 1e-6) + 1e-12
-
-
 def test_corrective_triplets_deterministic():
     M, _ = _M(3, noise=0.02, seed=5)
     a = C.corrective_triplets(M, 3, seed=4)
@@ -115,46 +84,46 @@ def test_corrective_triplets_deterministic():
     np.testing.assert_array_equal(a.costs, b.costs)
 
 
-def test_penalized_gram_admm_matches_cvxpy_and_is_psd():
+def test_penalized_gram_is_psd_normalised_and_converged():
     M, _ = _M(3, noise=0.01, seed=2)
-    Qa = RX.penalized_gram(M, 3, solver="admm", tol=1e-9)
-    Qc = RX.penalized_gram(M, 3, solver="cvxpy")
+    Qa = RX.penalized_gram(M, 3, tol=1e-9)
+    Qb = RX.penalized_gram(M, 3, tol=1e-11, max_iter=20000)
     assert np.linalg.eigvalsh(Qa).min() > -1e-9
     F = M.shape[0] // 2
     assert np.trace(M.T @ M @ Qa) == pytest.approx(2 * F, rel=1e-6)
-    np.testing.assert_allclose(Qa, Qc, atol=2e-3 * np.abs(Qc).max())
+    np.testing.assert_allclose(Qa, Qb, atol=1e-6 * np.abs(Qb).max())
 
 
-@pytest.mark.parametrize("starts", ["relaxed", "multistart", "columns"])
-def test_all_starts_reach_an_exact_triplet_noise_free(starts):
+def test_the_relaxation_starts_an_exact_triplet_noise_free():
     M, _ = _M(2, F=40, P=21, seed=6)
-    res = AB.corrective_triplets_from(M, 2, starts=starts, seed=1)
-    assert res.costs[0] < 1e-16
+    G0 = RX.triplets_from_gram(RX.penalized_gram(M, 2))
+    assert G0.shape == (6, 3)
+    assert C.refine_triplet(G0, M)[1] < 1e-16
 
 
 def test_search_stops_after_two_hits_of_the_best_minimum():
     M, _ = _M(3, noise=0.02, seed=7)
-    G, costs, info = C.search_triplet(M, 3, seed=0)
-    assert info["stopped"] == "hits" and info["hits"] >= 2
-    assert info["n_starts"] == len(info["history"]) <= 40
-    assert np.all(np.diff(costs) >= 0)
-    assert costs[0] <= min(c for _, c, _ in info["history"]) * (1 + 1e-5)
+    res = C.search_triplet(M, 3, seed=0)
+    assert res.stopped == "hits" and res.hits >= 2
+    assert res.n_starts == len(res.history) <= 40
+    assert np.all(np.diff(res.costs) >= 0)
+    assert res.costs[0] <= min(c for _, c, _ in res.history) * (1 + 1e-5)
 
 
 def test_search_from_random_starts_only_finds_the_relaxations_minimum():
     """The stopping rule, fed only seeded random starts, confirms the same minimum."""
     M, _ = _M(2, noise=0.03, seed=8)
-    _, c_relaxed, _ = C.search_triplet(M, 2, seed=0)
-    G, c_random, info = C.search_triplet(M, 2, seed=3, lams=())
-    assert info["n_random"] == info["n_starts"] >= 2
-    assert info["miss_bound"] == pytest.approx(min(1.0, 3.0 / info["n_random"]))
-    assert c_random[0] == pytest.approx(c_relaxed[0], rel=1e-4)
+    relaxed = C.search_triplet(M, 2, seed=0)
+    res = C.search_triplet(M, 2, seed=3, lams=())
+    assert res.n_random == res.n_starts >= 2
+    assert res.miss_bound == pytest.approx(min(1.0, 3.0 / res.n_random))
+    assert res.costs[0] == pytest.approx(relaxed.costs[0], rel=1e-4)
 
 
 def test_search_is_deterministic_and_bounded():
     M, _ = _M(2, noise=0.05, seed=9)
     a = C.search_triplet(M, 2, seed=5, hits=50, max_starts=6)
     b = C.search_triplet(M, 2, seed=5, hits=50, max_starts=6)
-    assert a[2]["stopped"] == "max_starts" and a[2]["n_starts"] == 6
-    np.testing.assert_array_equal(a[0], b[0])
-    assert a[2]["history"] == b[2]["history"]
+    assert a.stopped == "max_starts" and a.n_starts == 6
+    np.testing.assert_array_equal(a.G, b.G)
+    assert a.history == b.history

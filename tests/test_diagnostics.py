@@ -49,7 +49,7 @@ def test_three_K_above_centred_rank_is_value_error_naming_both():
 
 
 def test_planar_object_rank_deficient_warns_with_rank():
-    res, caught = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    res, caught = _run(_planar(), 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=6)))
     assert len(caught) == 1
     msg = str(caught[0].message)
     assert msg.startswith("unreliable reconstruction: W-rank-deficient: W has only 4 "
@@ -67,7 +67,7 @@ def test_static_camera_warns():
 
 def test_transposed_input_warns():
     seq = data_tools.make_synthetic(F=60, P=30, K=2, seed=1)     # W is 120 x 30
-    res, caught = _run(seq.W.T, 2, rotation_options=dict(max_starts=8))  # read as 15 x 120
+    res, caught = _run(seq.W.T, 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=8)))  # read as 15 x 120
     assert len(caught) == 1
     msg = str(caught[0].message)
     assert "looks transposed" in msg and "W.T" in msg
@@ -109,10 +109,10 @@ def test_bad_triplet_is_flagged():
     """A triplet far from the best minimum: the cost ratio flags it."""
     seq = data_tools.make_synthetic(F=80, P=30, K=2, noise=0.02, seed=5)
     f = factorize(seq.W, 2)
-    good = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm"))
-    bad = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm"))
+    good = estimate_rotations(f.M_hat, 2, single=True)
+    bad = estimate_rotations(f.M_hat, 2, single=True)
     G = np.random.default_rng(0).standard_normal((6, 3))
-    bad.info["corrective_costs"] = np.array([nrsfm.stages.corrective.triplet_cost(G, f.M_hat)])
+    bad.search.costs = np.array([nrsfm.stages.corrective.triplet_cost(G, f.M_hat)])
     bad.G = G[None]
     d_good = D.diagnose(seq.W, 2, f, good)
     d_bad = D.diagnose(seq.W, 2, f, bad)
@@ -123,7 +123,7 @@ def test_bad_triplet_is_flagged():
 
 def test_warning_class_and_report(tmp_path, capsys):
     assert issubclass(nrsfm.NRSfMWarning, UserWarning)
-    res, _ = _run(_planar(), 2, rotation_options=dict(max_starts=6))
+    res, _ = _run(_planar(), 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=6)))
     text = res.diagnostics.summary()
     assert "WARNING" in text and "numerical_rank = 4" in text
     pytest.importorskip("rerun")

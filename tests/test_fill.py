@@ -62,7 +62,7 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     res = nrsfm.reconstruct(W, 2)                   # the default: fill="neighbours"
     model = nrsfm.reconstruct(W, 2, settings=Settings(
         measurement=MeasurementSettings(fill="model")))     # the shape stage's fill
-    assert res.params["settings"].measurement.fill == "neighbours"
+    assert res.settings.measurement.fill == "neighbours"
     assert model.fill_spread is None and "fill" in res.timings
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[seen], model.shapes[seen])

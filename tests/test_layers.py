@@ -1,7 +1,6 @@
 """The layers of docs/architecture.md, read from the code: every import of a module of
 ``nrsfm`` (at the top or inside a function) points to its own layer or a lower one, there
-is no import circle between modules, and the production path never imports the research
-package."""
+is no import circle between modules."""
 
 import ast
 import subprocess
@@ -22,7 +21,6 @@ LAYERS = [
     ("diagnostics", ["nrsfm.diagnostics"]),
     ("settings", ["nrsfm.settings"]),
     ("pipeline", ["nrsfm.pipeline"]),
-    ("research", ["nrsfm.research"]),
     ("library glue and views", ["nrsfm.tracks", "nrsfm.views"]),
     ("package face", ["nrsfm"]),
     ("CLI and experiments", ["nrsfm.experiments", "nrsfm.cli", "nrsfm.__main__"]),
@@ -102,14 +100,3 @@ def test_no_import_circle(graph):
         if n not in state:
             visit(n, [n])
     assert not circles, "import circles:\n" + "\n".join(circles)
-
-
-def test_production_path_does_not_import_research():
-    code = ("import sys, numpy as np, nrsfm, data_tools\n"
-            "seq = data_tools.make_synthetic(F=20, P=12, K=1, motion='smooth', seed=0)\n"
-            "nrsfm.reconstruct(seq.W, 1)\n"
-            "bad = sorted(m for m in sys.modules if m.startswith('nrsfm.research'))\n"
-            "print(bad); sys.exit(1 if bad else 0)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         cwd=ROOT)
-    assert out.returncode == 0, out.stdout + out.stderr

@@ -39,13 +39,12 @@ def _stand_in_stages(result, seq, n_iter=9, seed=0):
     kept[0] = True
     rotation_stage = SimpleNamespace(
         rotations=seq.rotations, registered=registered, per_triplet=registered,
-        coefficients=rng.standard_normal((K, F)), kept=kept, averaged=seq.rotations,
-        strategy="stand-in")
+        coefficients=rng.standard_normal((K, F)), kept=kept, averaged=seq.rotations)
     history = {k: rng.random(n_iter) + 0.1 for k in ("cost", "data_term", "residual", "rho")}
     shape_stage = SimpleNamespace(
         shapes=result.shapes / result.scale, X_init=result.X_init / result.scale,
         X_init_singular_values=np.linspace(3, 0.1, F), theta=np.linspace(0.01, 1, F),
-        history=history, n_iter=n_iter, converged=True)
+        history=history, n_iter=n_iter, converged=True, solver="admm")
     return dataclasses.replace(result, rotation_stage=rotation_stage, shape_stage=shape_stage)
 
 

@@ -1,4 +1,4 @@
-"""W of numerical rank below 3K: rotations from the determined subspace (issue 18)."""
+"""W of numerical rank below 3K: rotations from the determined subspace."""
 
 import warnings
 
@@ -78,12 +78,11 @@ def test_K_above_the_true_K_is_exact(K_true, extra):
     res, caught = _run(seq.W * 0.7, K_true + extra)
     assert rotation_error(res.rotations, seq.rotations) <= 1e-5
     assert e3d(res.shapes, seq.shapes) <= 1e-3
-    assert res.rotation_stage.info["determined_rank"] == 3 * K_true
+    assert res.rotation_stage.determined_rank == 3 * K_true
     assert not caught
 
 
 def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
-    from nrsfm.settings import RotationSettings
     from nrsfm.stages.corrective import triplet_cost
     from nrsfm.stages.measurement import factorize
     from nrsfm.stages.rotations.subspace import lower_minimum
@@ -91,7 +90,7 @@ def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
 
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=5)
     f = factorize(seq.W, 2)
-    best = estimate_rotations(f.M_hat, 2, RotationSettings.preset("bmm")).info["corrective_costs"][0]
+    best = estimate_rotations(f.M_hat, 2, single=True).search.costs[0]
     assert not lower_minimum(f.M_hat, 2, best)[0]
     bad = triplet_cost(np.random.default_rng(0).standard_normal((6, 3)), f.M_hat)
     lower, other = lower_minimum(f.M_hat, 2, bad)
@@ -99,72 +98,20 @@ def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
 
 
 def test_shape_for_the_stage_rotations_in_one_solve(monkeypatch):
-    """Default: one shape solve, for the rotation stage's rotations; the diagnostics read
-    the depth amplification of that answer (no second solve)."""
-    from nrsfm.stages import selection
+    """One shape solve, for the rotation stage's rotations; the diagnostics read the depth
+    amplification of that answer (no second solve)."""
+    from nrsfm import pipeline
 
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
     calls = []
-    solve = selection.solve_shape
-    monkeypatch.setattr(selection, "solve_shape", lambda *a, **k: calls.append(1) or
+    solve = pipeline.solve_shape
+    monkeypatch.setattr(pipeline, "solve_shape", lambda *a, **k: calls.append(1) or
                         solve(*a, **k))
     res = nrsfm.reconstruct(seq.W, 2)
     assert len(calls) == 1
-    sel = res.rotation_stage.info["shape_selection"]
-    assert sel["candidates"] == ["organic", "single_triplet"]
-    assert sel["chosen"] == "organic" and len(sel["objectives"]) == 1
     np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
     given = nrsfm.reconstruct(seq.W, 2, rotations=res.rotations)     # one answer for R
     np.testing.assert_allclose(given.shapes, res.shapes, atol=1e-9 * np.abs(res.shapes).max())
     amp = res.diagnostics.signals["depth_amplification"]
     assert amp == given.diagnostics.signals["depth_amplification"]
-    assert 0.9 < amp < 2.0 and "depth_sensitivity" not in res.diagnostics.signals
-
-
-def test_shape_gets_the_rotations_with_the_lowest_shape_objective():
-    import dataclasses
-
-    from nrsfm.settings import method_settings
-
-    seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
-    s = method_settings()
-    both = dataclasses.replace(s, shape=dataclasses.replace(s.shape, select_rotations=True))
-    res = nrsfm.reconstruct(seq.W, 2, settings=both)
-    sel = res.rotation_stage.info["shape_selection"]
-    assert sel["candidates"] == ["organic", "single_triplet"] and len(sel["objectives"]) == 2
-    best = int(np.argmin(sel["objectives"]))
-    assert sel["chosen"] == sel["candidates"][best]
-    single = nrsfm.reconstruct(seq.W, 2, method="bmm").rotations
-    used = single if sel["chosen"] == "single_triplet" else res.rotation_stage.rotations
-    np.testing.assert_allclose(res.rotations, used, atol=1e-9)
-
-
-def test_settings_of_the_issue_18_options():
-    import dataclasses
-
-    from nrsfm.research import RotationAblationSettings, rotation_settings
-    from nrsfm.settings import RotationSettings, ShapeSettings, method_settings
-
-    with pytest.raises(ValueError, match="determined"):
-        RotationSettings(determined="yes")
-    with pytest.raises(ValueError, match="select_rotations"):
-        ShapeSettings(select_rotations=1)
-    fam = rotation_settings("family")
-    assert isinstance(fam, RotationAblationSettings) and fam.combine == "family"
-    assert isinstance(rotation_settings("organic"), RotationSettings)
-    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
-    s = method_settings()
-    assert not s.shape.select_rotations                 # the default: one full solve
-    res = nrsfm.reconstruct(seq.W, 2, settings=s)
-    assert len(res.rotation_stage.info["shape_selection"]["objectives"]) == 1
-    np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
-
-
-def test_family_strategy_runs_the_combination():
-    seq = data_tools.make_synthetic(F=40, P=20, K=2, noise=0.02, seed=4)
-    from nrsfm.research import research_settings
-
-    res = nrsfm.reconstruct(seq.W, 2, settings=research_settings("family"))
-    assert res.rotation_stage.strategy == "family"
-    assert "G_family" in res.rotation_stage.info
-    assert "G_family" not in nrsfm.reconstruct(seq.W, 2).rotation_stage.info
+    assert 0.9 < amp < 2.0

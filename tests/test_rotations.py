@@ -8,11 +8,7 @@ from threadpoolctl import threadpool_limits
 import data_tools
 from nrsfm import rotation_error
 from nrsfm.stages.measurement import factorize
-from nrsfm.research import family as FAM
-from nrsfm.research import rotations as AB
-from nrsfm.research import triplets as TRI
 from nrsfm import geometry as GEO
-from nrsfm.research import rotation_settings
 from nrsfm.settings import RotationSettings
 from nrsfm.stages import rotations as RT
 
@@ -36,16 +32,17 @@ def _seq(K, motion, noise=0.0, seed=0, F=40):
 @pytest.mark.parametrize("K", [1, 2, 3, 4])
 def test_noise_free_rotations_exact(K, motion):
     seq, M = _seq(K, motion, seed=K)
-    for strategy in ("organic", "bmm"):
-        res = RT.estimate_rotations(M, K, RotationSettings.preset(strategy), seed=0)
+    for single in (False, True):                          # organic, bmm
+        res = RT.estimate_rotations(M, K, single=single, seed=0)
         assert res.rotations.shape == (40, 3, 3)
+        assert res.n_triplets == (1 if single else K)
         assert np.allclose(np.linalg.det(res.rotations), 1.0)
-        assert rotation_error(res.rotations, seq.rotations) < 1e-6, strategy
+        assert rotation_error(res.rotations, seq.rotations) < 1e-6, single
 
 
 def test_random_motion_exact_up_to_depth_reversal():
     seq, M = _seq(2, "random", seed=11)
-    res = RT.estimate_rotations(M, 2, RotationSettings.preset("organic"), seed=0)
+    res = RT.estimate_rotations(M, 2, seed=0)
     R, Rgt = res.rotations, seq.rotations
     # one global orthogonal alignment from the third rows (unchanged by a depth reversal)
     U, _, Vt = np.linalg.svd(np.einsum("fi,fj->ij", R[:, 2], Rgt[:, 2]))
@@ -119,7 +116,7 @@ def test_l1_average_robust_to_outliers():
     samples = (noise * Rotation.concatenate([truth] * m)).as_matrix().reshape(m, F, 3, 3)
     samples[:3] = Rotation.random(3 * F, random_state=2).as_matrix().reshape(3, F, 3, 3)
     l1 = GEO.average_rotations(samples)
-    l2 = TRI.chordal_mean(samples)
+    l2 = GEO.project_to_so3(samples.mean(axis=0))            # the chordal L2 mean
     e1 = GEO.rotation_angle(l1, truth.as_matrix())
     e2 = GEO.rotation_angle(l2, truth.as_matrix())
     assert e1.mean() < 0.02
@@ -160,16 +157,13 @@ def test_registration_recovers_global_rotation(mirrored):
     assert np.isclose(np.linalg.det(R_reg), 1.0)
 
 
-def test_filter_metrics():
+def test_filter_by_geodesic_angle():
     R = Rotation.random(5, random_state=6).as_matrix()
-    small = Rotation.from_rotvec([0, 0, 0.04]).as_matrix()
-    reg = np.stack([R, small @ R])
-    kept_a, d_a = RT.filter_rotations(reg, R, 0.05, "angle")
-    kept_c, d_c = RT.filter_rotations(reg, R, 0.05, "chordal")
-    assert kept_a.all()
-    np.testing.assert_allclose(d_a[1], 0.04, atol=1e-12)
-    np.testing.assert_allclose(d_c[1], 2 * np.sqrt(2) * np.sin(0.02), atol=1e-12)
-    assert not kept_c[1].any()        # chordal 0.0566 > 0.05
+    reg = np.stack([R, Rotation.from_rotvec([0, 0, 0.04]).as_matrix() @ R,
+                    Rotation.from_rotvec([0, 0.06, 0]).as_matrix() @ R])
+    kept, d = RT.filter_rotations(reg, R, 0.05)
+    np.testing.assert_allclose(d[1:], [[0.04] * 5, [0.06] * 5], atol=1e-12)
+    assert kept[:2].all() and not kept[2].any()
 
 
 def test_no_nan_when_a_coefficient_is_zero():
@@ -182,8 +176,8 @@ def test_no_nan_when_a_coefficient_is_zero():
     assert np.all(np.isfinite(R))
     assert not valid[:, 5].any() and not valid[1].any()
     assert np.all(coef[:, 5] == 0)
-    for strategy in ("organic", "bmm", "literal"):
-        res = AB.estimate_rotations_ablation(M, 2, rotation_settings(strategy), seed=0)
+    for single in (False, True):
+        res = RT.estimate_rotations(M, 2, single=single, seed=0)
         assert np.all(np.isfinite(res.rotations))
         assert np.allclose(np.linalg.det(res.rotations), 1.0)
 
@@ -200,59 +194,20 @@ def test_deterministic_under_seed_and_result_fields():
     assert a.registration.shape == (3, 3, 3)
     np.testing.assert_array_equal(a.registration[0], np.eye(3))
     assert a.averaged.shape == (F, 3, 3) and a.sign_from_smoothness.shape == (F,)
-    assert a.strategy == "organic" and isinstance(a.params, dict)
+    assert a.triplet_costs.shape == (3,) and a.window_spans.shape == (2, 2)
+    assert a.search.costs[0] == pytest.approx(a.triplet_costs[0])
+    assert a.determined_rank == 9 and a.effective_K == 3
     assert {"registration", "filtering", "averaging"} <= set(a.timings)
     assert rotation_error(a.rotations, seq.rotations) < 0.2   # 3% noise, K = 3: loose
 
 
-def test_unknown_strategy_and_option():
-    _, M = _seq(1, "smooth")
-    with pytest.raises(ValueError, match="strategy"):
-        rotation_settings("nope")
-    with pytest.raises(ValueError, match="option"):
-        rotation_settings(bogus=1)
-
-
-@pytest.mark.parametrize("strategy,options", [
-    ("literal", {}), ("multistart", {}), ("windows", {}), ("bootstrap", {}),
-    ("organic", dict(refit=True)), ("organic", dict(average="chordal")),
-    ("organic", dict(subsets="random", coef_gate=0.5, coef_weights=True)),
-    ("organic", dict(filter_metric="chordal", filter_against="reference")),
-])
-def test_every_strategy_exact_noise_free(strategy, options):
-    seq, M = _seq(2, "smooth", seed=3)
-    res = AB.estimate_rotations_ablation(M, 2, rotation_settings(strategy, **options), seed=1)
-    assert rotation_error(res.rotations, seq.rotations) < 1e-6
-    assert res.params["strategy"] == strategy
-
-
-@pytest.mark.parametrize("K", [2, 3])
-def test_triplet_family_noise_free_is_k_dimensional(K):
-    seq, M = _seq(K, "smooth", seed=10 + K)
-    G, eig = FAM.triplet_family(M, seq.rotations, K)
-    assert G.shape == (K, 3 * K, 3)
-    # exact data: the K family members give M_f G^k = c_fk R_f[:2] exactly
-    assert eig.max() < 1e-10
-    B = np.einsum("ri,kij->krj", M, G).reshape(K, -1, 2, 3)
-    c = 0.5 * np.einsum("kfij,fij->kf", B, seq.rotations[:, :2])
-    np.testing.assert_allclose(B, c[..., None, None] * seq.rotations[None, :, :2], atol=1e-8)
-
-
-def test_combine_family_beats_single_triplet_under_noise():
-    """Maximum-ratio combination of the K family triplets: lower e_R than one triplet."""
-    errs = []
-    for seed in range(3):
-        seq, M = _seq(3, "smooth", noise=0.08, seed=20 + seed, F=80)
-        single = RT.estimate_rotations(M, 3, RotationSettings.preset("bmm"), seed=0)
-        G, _ = FAM.triplet_family(M, single.rotations, 3)
-        R, w = FAM.combine_family(M, G, single.rotations)
-        assert w.shape == (3, 80) and np.all(w >= 0)
-        R, _ = RT.resolve_depth_signs(R)
-        errs.append((rotation_error(R, seq.rotations),
-                     rotation_error(single.rotations, seq.rotations)))
-    errs = np.array(errs)
-    assert np.all(errs[:, 0] < errs[:, 1]), errs
-    assert errs[:, 0].mean() < 0.98 * errs[:, 1].mean(), errs
+def test_settings_validation_names_the_value():
+    with pytest.raises(ValueError, match="delta"):
+        RotationSettings(delta=-1)
+    with pytest.raises(ValueError, match="max_starts"):
+        RotationSettings(max_starts=0)
+    with pytest.raises(ValueError, match="RotationSettings"):
+        RT.estimate_rotations(_seq(1, "smooth")[1], 1, settings=dict(delta=0.1))
 
 
 def test_batched_projection_near_ambiguous_reflections_to_the_conditioning():

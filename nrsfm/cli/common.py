@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from ..io import atomic_output, check_output_path
-from ..settings import shape_solvers
+from ..stages.shape import SOLVERS
 
 __all__ = ["add_shape_solver_option", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_STATUS_HELP",
            "UsageError", "Parser", "one_line", "fail", "positive_int", "seed",
@@ -148,7 +148,6 @@ def print_report(result, seq=None):
 
 def add_shape_solver_option(p):
     """``--shape-solver`` (every command that reconstructs)."""
-    p.add_argument("--shape-solver", choices=shape_solvers(), default="bilinear",
+    p.add_argument("--shape-solver", choices=list(SOLVERS), default=None,
                    help="shape-stage solver (default: bilinear; admm: the paper's "
-                        "continuation ADMM; closed_form: exact rank-K, no prior; "
-                        "constrained: W fitted to within its noise)")
+                        "continuation ADMM)")

@@ -139,7 +139,8 @@ def cmd_demo_video(args):
     video = make_video(args.surface or "sheet", n_frames=F, size=size, seed=args.seed)
     frames, truth = write_video(video, output_dir("demo_video"))
     argv = ["video", str(frames), "--ground-truth", str(truth), "--method", args.method,
-            "--shape-solver", args.shape_solver, "--seed", str(args.seed)]
+            "--seed", str(args.seed)]
+    argv += ["--shape-solver", args.shape_solver] if args.shape_solver else []
     argv += (["--rrd", str(rrd)] if rrd is not None else []) + (
         ["--quiet"] if args.quiet else [])
     print(f"synthetic video: {video.surface}, {F} frames of {size[1]}x{size[0]}, seed "

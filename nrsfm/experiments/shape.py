@@ -1,4 +1,4 @@
-"""The shape-stage table (issue 22): the shape stage alone, on ground-truth rotations, for
+"""The shape-stage table: the shape stage alone, on ground-truth rotations, for
 each formulation, on every kind of data the default has to serve.
 
 Rows (:func:`shape_rows`):
@@ -15,14 +15,11 @@ Rows (:func:`shape_rows`):
   ``external/`` beside ``mocap/``): ``back`` re-projected by a camera that turns at random
   every frame (:func:`data_tools.reproject`, path ``random``).
 
-Columns (:data:`COLUMNS`): the default shape stage; the three formulations the issue
-compares: the bilinear solver at rank K with ``mu_factor = 0.03`` (the default before
-issue 22), the paper's ADMM, the bilinear solver at rank 3K with ``mu_factor = 0.01``
-(both bilinear columns with a constant factor, ``mu_noise = 0``); and the ADMM with its
-weight from the noise. The last columns are the best of the columns other than the default
-and the default's e3d as a multiple of that best. The column ``default, init best`` (the
-default solved from the closed form and from the ADMM's answer, the lower objective kept:
-``BilinearSettings.init``) is shown beside them and not counted in the best.
+Columns (:data:`COLUMNS`): the default shape stage and three other formulations: the
+bilinear solver at rank K with ``mu_factor = 0.03``, the paper's ADMM, the bilinear solver
+at rank 3K with ``mu_factor = 0.01`` (both bilinear columns with a constant factor,
+``mu_noise = 0``). The last columns are the best of the columns other than the default
+and the default's e3d as a multiple of that best.
 """
 
 from __future__ import annotations
@@ -31,25 +28,30 @@ import time
 
 import numpy as np
 
-__all__ = ["COLUMNS", "DEFAULT_VARIANTS", "TITLE", "run_shape", "shape_rows", "shape_table",
-           "shape_tasks"]
+__all__ = ["COLUMNS", "TITLE", "run_shape", "shape_rows", "shape_table", "shape_tasks"]
 
-TITLE = "Shape stage: e3d per formulation (issue 22)"
+TITLE = "Shape stage: e3d per formulation"
 
-#: column -> the reconstruct keywords of that formulation, as a function of K
+
+def _bilinear(**fields):
+    from nrsfm import BilinearSettings
+
+    return BilinearSettings(**fields)
+
+
+def _admm():
+    from nrsfm import AdmmSettings
+
+    return AdmmSettings()
+
+
+#: column -> the shape settings of that formulation, as a function of K
 COLUMNS = {
-    "default": lambda K: {},
-    "rank K, mu_factor .03": lambda K: dict(shape_solver="bilinear", shape_options=dict(
-        rank=K, mu_factor=0.03, mu_noise=0.0)),
-    "admm": lambda K: dict(shape_solver="admm"),
-    "rank 3K, mu_factor .01": lambda K: dict(shape_solver="bilinear", shape_options=dict(
-        rank=3 * K, mu_factor=0.01, mu_noise=0.0)),
-    "admm, mu from noise": lambda K: dict(shape_solver="admm",
-                                          shape_options=dict(mu_noise=42000.0)),
-    "default, init best": lambda K: dict(shape_options=dict(init="best")),
+    "default": lambda K: _bilinear(),
+    "rank K, mu_factor .03": lambda K: _bilinear(rank=K, mu_factor=0.03, mu_noise=0.0),
+    "admm": lambda K: _admm(),
+    "rank 3K, mu_factor .01": lambda K: _bilinear(rank=3 * K, mu_factor=0.01, mu_noise=0.0),
 }
-#: columns that are the default with one option changed: shown, not counted in "best"
-DEFAULT_VARIANTS = ("default, init best",)
 
 _AKHTER = ("drink", "pickup", "yoga", "stretch")
 _NOISY = ("pickup", "stretch")
@@ -152,7 +154,7 @@ def run_shape(row, column, seed=0, data=None):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = nrsfm.reconstruct(scale * seq.W, seq.K, rotations=seq.rotations, seed=seed,
-                                **COLUMNS[column](seq.K))
+                                settings=nrsfm.Settings(shape=COLUMNS[column](seq.K)))
     seconds = time.perf_counter() - t0
     return [dict(row=row_label(row), kind=row["kind"], column=column, K=int(seq.K),
                  e3d=float(nrsfm.e3d(res.shapes, scale * seq.shapes)),
@@ -174,8 +176,7 @@ def shape_table(rows):
             kind = next(r["kind"] for r in rows if r["row"] == label)
             cells.append(None if not vals else
                          float(np.max(vals) if kind == "exact" else np.mean(vals)))
-        have = [v for c, v in zip(cols[1:], cells[1:])
-                if v is not None and c not in DEFAULT_VARIANTS]
+        have = [v for v in cells[1:] if v is not None]
         best = min(have) if have else None
         ratio = None if best in (None, 0) or cells[0] is None else cells[0] / best
         lines.append([label] + cells + [best, ratio])

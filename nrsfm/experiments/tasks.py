@@ -94,13 +94,17 @@ def _timed(fn, *args, **kwargs):
     return out, time.perf_counter() - t0
 
 
-def _reconstruct(W, K, method="organic", **kw):
+def _reconstruct(W, K, method="organic", shape=None, **kw):
     """``nrsfm.reconstruct`` timed. ``method`` may name a shape solver after a dash
-    (``"organic-admm"``: the organic pipeline with the paper's continuation ADMM)."""
+    (``"organic-admm"``: the organic pipeline with the paper's continuation ADMM); ``shape``
+    gives the shape solver's settings instead."""
     import nrsfm
 
     if "-" in method:
         method, kw["shape_solver"] = method.split("-", 1)
+    if shape is not None:
+        kw["settings"] = nrsfm.Settings(method=method, shape=shape)
+        return _timed(nrsfm.reconstruct, W, K, **kw)
     return _timed(nrsfm.reconstruct, W, K, method=method, **kw)
 
 
@@ -196,12 +200,14 @@ def run_missing_tracks(sequence, pattern, fraction, drop_seed, seed=0, data=None
 def run_n_ablation(sequence, Ns, seed=0, data=None):
     """Fig. 3d: the paper's shape stage (PSVT ADMM) with N = 0..5 on the same (organic)
     rotations; N is that solver's number of unpenalised singular values."""
+    from nrsfm import AdmmSettings
+
     seq = load_sequence(sequence, data)
     base, _ = _reconstruct(seq.W, seq.K, method="organic", seed=seed)
     rows = []
     for N in Ns:
-        res, secs = _reconstruct(seq.W, seq.K, method="organic-admm", seed=seed,
-                                 rotations=base.rotations, shape_options=dict(N=int(N)))
+        res, secs = _reconstruct(seq.W, seq.K, method="organic", seed=seed,
+                                 rotations=base.rotations, shape=AdmmSettings(N=int(N)))
         rows.append(dict(sequence=sequence, K=seq.K, N=int(N), **_errors(res, seq),
                          t_shape=float(secs)))
     return rows

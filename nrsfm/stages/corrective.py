@@ -10,8 +10,7 @@ Stages, each a function named by what it maps:
   acting on vech(Q), n = 3K (:mod:`nrsfm.stages.relaxation`).
 * :func:`~nrsfm.stages.relaxation.penalized_gram`: M_hat -> Q, a PSD relaxation (trace plus
   a penalty on Dai's constraint residual, mean squared camera scale fixed to 1).
-* :func:`~nrsfm.stages.relaxation.triplets_from_gram`: Q -> G from the top-3 eigenpairs
-  (or the K column blocks).
+* :func:`~nrsfm.stages.relaxation.triplets_from_gram`: Q -> G from the top-3 eigenpairs.
 * :func:`refine_triplet`: G -> G minimising Dai's cost
   ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2`` (r1, r2 the rows of M_f G)
   by Levenberg-Marquardt on the 2F residuals with the analytic Jacobian.
@@ -19,26 +18,22 @@ Stages, each a function named by what it maps:
   stopped once the lowest cost has been reached by two starts.
 * :func:`corrective_triplets`: the search, as the rotation stage runs it.
 
-Dai's own relaxation (minimum nuclear norm over the solution space) and the other starts
-are research variants in :mod:`nrsfm.research.rotations`. Measurements behind these choices (which
-starts reach the best minimum, with and without track noise, and at what cost):
-``docs/rotation_stage.md``.
+Why these starts and this rule: ``docs/studies/rotations.md``.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import lapack
-from scipy.optimize import least_squares, minimize
 
 from .relaxation import penalized_gram, triplets_from_gram
 
-__all__ = ["triplet_residuals", "triplet_cost", "triplet_gradient", "refine_triplet",
-           "CorrectiveResult", "corrective_triplets", "search_triplet", "SEARCH_LAMBDAS",
-           "SEARCH_SDP_TOL"]
+__all__ = ["SEARCH_LAMBDAS", "SEARCH_SDP_TOL", "TripletSearch", "corrective_triplets",
+           "refine_triplet", "search_triplet", "triplet_cost", "triplet_gradient",
+           "triplet_residuals"]
 
 
 # ------------------------------------------------------------------------- refinement
@@ -222,9 +217,10 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
     return g.reshape(shape), cost, it
 
 
-def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-10,
-                   lam0=LAM0, reuse=None):
-    """Minimise Dai's cost over G (3K x 3), started from ``G0``.
+def refine_triplet(G0, M_hat, weights=None, max_iter=500, tol=1e-10, lam0=LAM0, reuse=None):
+    """Minimise Dai's cost over G (3K x 3) from ``G0`` by Levenberg-Marquardt on the 2F
+    residuals with the analytic Jacobian, stopped when the relative decrease of the cost is
+    below ``tol`` (tens of iterations, 20-100 ms on pickup).
 
     Parameters
     ----------
@@ -232,23 +228,20 @@ def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-1
     M_hat : (2F, 3K) ndarray
     weights : (F,) ndarray, optional
         Per-frame weights (0 drops a frame).
-    method : {"lm", "minpack", "lbfgs"}
-        ``lm`` (default): the Levenberg-Marquardt above on the 2F residuals with the
-        analytic Jacobian, stopped when the relative decrease of the cost is below ``tol``:
-        tens of iterations, 20-100 ms on pickup. ``minpack``: the same model through
-        ``scipy.optimize.least_squares(method="lm")`` (same minima, about 10x slower).
-        ``lbfgs``: scipy L-BFGS-B on the cost with the analytic gradient ``2 J'r``: the
-        same minimum from the same start, but thousands of iterations (seconds).
+    max_iter : int
+    tol : float
     lam0 : float
-        ``lm``: initial damping, times max diag(J'J) (:data:`LAM0` for cold starts; a
-        start already near a minimum can take a smaller one).
+        Initial damping, times max diag(J'J) (:data:`LAM0` for cold starts; a start already
+        near a minimum can take a smaller one).
     reuse : float or None
-        ``lm``: keep J'J after small steps (near a minimum; see ``_levenberg_marquardt``).
+        Keep J'J after small steps (near a minimum; see ``_levenberg_marquardt``).
 
     Returns
     -------
     G : (3K, 3) ndarray, normalised so that the rows of M_f G have RMS norm 1
-    info : dict (cost, cost0, iterations, seconds, method)
+    cost : float
+        Dai's cost at G.
+    iterations : int
     """
     M = np.asarray(M_hat, float)
     if weights is not None:
@@ -258,79 +251,76 @@ def refine_triplet(G0, M_hat, weights=None, method="lm", max_iter=None, tol=1e-1
             M = M[np.repeat(keep, 2)]
             weights = weights[keep]
     G0 = _normalise_triplet(np.asarray(G0, float), M)
-    shape = G0.shape
-    t0 = time.perf_counter()
-    cost0 = triplet_cost(G0, M, weights)
-    if method == "lm":
-        G, _, nit = _levenberg_marquardt(G0, M, weights, max_iter or 500, tol, lam0, reuse)
-    elif method == "minpack":
-        def fun(g):
-            return triplet_residuals(g.reshape(shape), M, weights)
-
-        def jac(g):
-            return triplet_residuals(g.reshape(shape), M, weights, jac=True)[1]
-
-        res = least_squares(fun, G0.ravel(), jac=jac, method="lm", xtol=1e-12, ftol=1e-12,
-                            gtol=1e-12, max_nfev=max_iter or 100 * G0.size)
-        G, nit = res.x.reshape(shape), int(res.nfev)
-    elif method == "lbfgs":
-        def fg(g):
-            r, J = triplet_residuals(g.reshape(shape), M, weights, jac=True)
-            return float(r @ r), 2.0 * (J.T @ r)
-
-        res = minimize(fg, G0.ravel(), jac=True, method="L-BFGS-B",
-                       options=dict(maxiter=max_iter or 20000, ftol=1e-15, gtol=1e-10,
-                                    maxcor=30))
-        G, nit = res.x.reshape(shape), int(res.nit)
-    else:
-        raise ValueError(f"unknown method {method!r}")
+    G, _, nit = _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0, reuse)
     G = _normalise_triplet(G, M)
-    return G, dict(cost=triplet_cost(G, M, weights), cost0=cost0, iterations=nit,
-                   seconds=time.perf_counter() - t0, method=method)
+    return G, triplet_cost(G, M, weights), nit
 
 
-# ------------------------------------------------------------------------- all together
+# ------------------------------------------------------------------------- the search
 @dataclass
-class CorrectiveResult:
-    """Output of :func:`corrective_triplets`.
+class TripletSearch:
+    """Output of :func:`search_triplet`: the distinct minima of Dai's cost it found.
 
     Attributes
     ----------
     G : (m, 3K, 3) ndarray
-        Refined triplets (m = 1 for ``mode="eig"``).
-    G_init : (m, 3K, 3) ndarray
-        Starting points (from the relaxed Gram matrix).
-    Q : (3K, 3K) ndarray
-        Relaxed Gram matrix.
+        The refined triplets of the distinct minima, lowest cost first (``G[0]``: the best).
     costs : (m,) ndarray
-        Dai's cost of each refined triplet.
-    info : dict
-    timings : dict
+        Dai's cost of each.
+    starts : list of str
+        The first start that reached each minimum (``relaxed(lam=...)`` or ``randomN``).
+    counts : list of int
+        Starts that reached each minimum.
+    history : list of (str, float, int)
+        Every start: its name, the cost it reached, its iterations.
+    n_random : int
+        Random starts refined.
+    stopped : {"hits", "max_starts"}
+        Why the search stopped.
+    miss_bound : float
+        ``3 / n_random``: with 95 % confidence, the attraction probability of a better
+        minimum never reached (rule of three; 1 when no random start was used).
+    Q : (3K, 3K) ndarray
+        The last relaxed Gram matrix (:func:`~nrsfm.stages.relaxation.penalized_gram`).
+    seconds : float
     """
 
     G: np.ndarray
-    G_init: np.ndarray
-    Q: np.ndarray
     costs: np.ndarray
-    info: dict = field(default_factory=dict)
-    timings: dict = field(default_factory=dict)
+    starts: list
+    counts: list
+    history: list
+    n_random: int
+    stopped: str
+    miss_bound: float
+    Q: np.ndarray
+    seconds: float = 0.0
+
+    @property
+    def n_starts(self):
+        return len(self.history)
+
+    @property
+    def hits(self):
+        """Starts that reached the best minimum."""
+        return self.counts[0]
 
 
-#: penalties of :func:`penalized_gram` tried, in order, by ``starts="search"``
+#: penalties of :func:`penalized_gram` tried, in order, by the search
 SEARCH_LAMBDAS = (1e1, 1e2)
 #: the relaxation's tolerance in the search: its Gram matrix is only a start that the
 #: refinement takes to the minimum (1e-7 -> 1e-5: the rotations of the 8 MoCap sequences
-#: move by at most 6e-7 after one global alignment, ``docs/rotation_stage.md`` section 8)
+#: move by at most 6e-7 after one global alignment)
 SEARCH_SDP_TOL = 1e-5
 
 
 def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
-                   rtol=1e-5, max_iter=200, sdp_solver="admm", refine="lm"):
+                   rtol=1e-5, max_iter=200):
     """Multistart minimisation of Dai's cost with a stopping rule.
 
     Starts, in a fixed order: the top-3 eigenpairs of :func:`penalized_gram` for each
     penalty in ``lams``, then Gaussian starts drawn from ``numpy.random.default_rng(seed)``.
-    Each start is refined on all frames (Levenberg-Marquardt, at most ``max_iter``
+    Each start is refined on all frames (:func:`refine_triplet`, at most ``max_iter``
     iterations). The search stops as soon as the lowest cost found so far has been reached
     by ``hits`` starts (costs equal to relative ``rtol``: the same minimum), or after
     ``max_starts`` starts.
@@ -339,9 +329,7 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
     estimated attraction probability ``h / n``; a better basin never reached in ``n``
     starts has, with 95% confidence, attraction probability below ``3 / n`` (rule of
     three). Requiring two hits of the best minimum means that minimum was found again by a
-    start that did not know it, which rules out the failure the single relaxation showed
-    under noise (one start, one unconfirmed local minimum). ``info["miss_bound"]`` reports
-    ``3 / n_random`` when random starts were used (1.0 when none were).
+    start that did not know it.
 
     Parameters
     ----------
@@ -358,27 +346,20 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
 
     Returns
     -------
-    G : (m, 3K, 3) ndarray
-        The refined triplets of the distinct minima found, lowest cost first.
-    costs : (m,) ndarray
-    info : dict
-        ``starts`` (name of each row's first start), ``n_starts``, ``hits`` (starts that
-        reached the best minimum), ``history`` (name, cost, iterations per start),
-        ``stopped`` ("hits" or "max_starts"), ``miss_bound``, relaxation infos.
+    TripletSearch
     """
+    t0 = time.perf_counter()
     M = np.asarray(M_hat, float)
     n = M.shape[1]                  # 3K, or the determined rank r
     rng = np.random.default_rng(seed)
     minima = []                     # [cost, G, name, count]
     history = []
-    info = {"penalized": []}
     Q = None
 
     def add(name, G0):
-        near = dict(reuse=1e-3) if refine == "lm" else {}       # J'J kept near the minimum
-        G, inf = refine_triplet(G0, M, method=refine, max_iter=max_iter, **near)
-        c = inf["cost"] if np.isfinite(inf["cost"]) else np.inf
-        history.append((name, float(c), int(inf["iterations"])))
+        G, c, nit = refine_triplet(G0, M, max_iter=max_iter, reuse=1e-3)
+        c = c if np.isfinite(c) else np.inf
+        history.append((name, float(c), int(nit)))
         for mn in minima:
             if abs(mn[0] - c) <= rtol * max(abs(mn[0]), 1e-12):
                 mn[3] += 1            # same minimum: keep the first start's triplet (its
@@ -386,19 +367,12 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         minima.append([c, G, name, 1])
 
     def done():
-        if not minima:
-            return False
-        best = min(minima, key=lambda mn: mn[0])
-        return best[3] >= hits
+        return bool(minima) and min(minima, key=lambda mn: mn[0])[3] >= hits
 
-    stopped = "max_starts"
-    n_random = 0
-    cache = {}
+    stopped, n_random, cache = "max_starts", 0, {}
     for lam in lams:
-        Q, pinfo = penalized_gram(M, K, lam=lam, solver=sdp_solver, tol=SEARCH_SDP_TOL,
-                                  return_info=True, _cache=cache)
-        info["penalized"].append(pinfo)
-        add(f"relaxed(lam={lam:g})", triplets_from_gram(Q, "eig")[0])
+        Q = penalized_gram(M, K, lam=lam, tol=SEARCH_SDP_TOL, _cache=cache)
+        add(f"relaxed(lam={lam:g})", triplets_from_gram(Q))
         if done():
             stopped = "hits"
             break
@@ -408,46 +382,15 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         if done():
             stopped = "hits"
     minima.sort(key=lambda mn: mn[0])
-    info.update(starts=[mn[2] for mn in minima], n_starts=len(history), n_random=n_random,
-                hits=int(minima[0][3]), counts=[mn[3] for mn in minima], history=history,
-                stopped=stopped, miss_bound=min(1.0, 3.0 / n_random) if n_random else 1.0,
-                Q=Q)
-    return (np.stack([mn[1] for mn in minima]), np.array([mn[0] for mn in minima]), info)
+    return TripletSearch(G=np.stack([mn[1] for mn in minima]),
+                         costs=np.array([mn[0] for mn in minima]),
+                         starts=[mn[2] for mn in minima], counts=[mn[3] for mn in minima],
+                         history=history, n_random=n_random, stopped=stopped,
+                         miss_bound=min(1.0, 3.0 / n_random) if n_random else 1.0, Q=Q,
+                         seconds=time.perf_counter() - t0)
 
 
-def corrective_triplets(M_hat, K, seed=0, hits=2, max_starts=40, sdp_solver="admm",
-                        refine="lm"):
-    """Corrective triplet(s) from the motion factor, best (lowest Dai cost) first.
-
-    :func:`search_triplet`: the relaxation at the penalties :data:`SEARCH_LAMBDAS`, then
-    seeded random starts, until the lowest cost has been reached by ``hits`` starts (at
-    most ``max_starts``). Other starts (Dai's relaxation, its column blocks, a screened
-    multistart) are research variants: :func:`nrsfm.research.rotations.corrective_triplets_from`.
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-    K : int
-    seed : int
-        Seed of the random starts.
-    hits, max_starts : int
-        Stopping rule of the search.
-    sdp_solver : {"admm", "cvxpy"}
-    refine : {"lm", "minpack", "lbfgs"}
-
-    Returns
-    -------
-    CorrectiveResult
-        ``G`` sorted by cost (``G[0]`` is the best triplet); ``info["starts"]`` names each
-        row's start, ``info["search"]`` the search's record.
-    """
-    M = np.asarray(M_hat, float)
-    t0 = time.perf_counter()
-    G, costs, sinfo = search_triplet(M, K, seed=seed, hits=hits, max_starts=max_starts,
-                                     sdp_solver=sdp_solver, refine=refine)
-    Q = sinfo.pop("Q")
-    timings = {"search": time.perf_counter() - t0}
-    sinfo["search"] = {k: sinfo[k] for k in ("n_starts", "n_random", "hits", "counts",
-                                             "history", "stopped", "miss_bound")}
-    return CorrectiveResult(G=G, G_init=G.copy(), Q=Q, costs=costs, info=sinfo,
-                            timings=timings)
+def corrective_triplets(M_hat, K, seed=0, hits=2, max_starts=40):
+    """The rotation stage's triplet search: :func:`search_triplet` with its penalties
+    :data:`SEARCH_LAMBDAS`, best (lowest Dai cost) first."""
+    return search_triplet(M_hat, K, seed=seed, hits=hits, max_starts=max_starts)

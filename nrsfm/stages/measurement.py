@@ -25,7 +25,7 @@ import numpy as np
 from ..noise import noise_from_singular_values
 
 __all__ = ["Factorization", "Measurements", "centre_rows", "factorize", "left_singular", "measure",
-           "power_of_two_scale", "working_scale"]
+           "power_of_two_scale", "weighted_svt", "working_scale"]
 
 #: Frobenius norm of the W the stages work on (see the module docstring)
 WORKING_FROBENIUS = 170.0
@@ -95,6 +95,37 @@ def left_singular(W):
         order = np.argsort(lam)[::-1]
         return U[:, order], np.sqrt(np.clip(lam[order], 0.0, None)), None
     return np.linalg.svd(W, full_matrices=False)
+
+
+def weighted_svt(M, thresholds):
+    """Weighted singular value thresholding ``U diag(max(s - t, 0)) V'`` of M (m, n).
+
+    For non-decreasing thresholds t this is the exact proximal operator of
+    ``sum_i t_i sigma_i`` (Gu et al., CVPR 2014; Oh et al.'s PSVT when ``t_1 = 0``),
+    computed from the eigen-decomposition of the Gram matrix of M's shorter side.
+
+    Parameters
+    ----------
+    M : (m, n) ndarray
+    thresholds : (>= min(m, n),) ndarray, non-negative, non-decreasing
+
+    Returns
+    -------
+    Y : (m, n) ndarray
+    s : (min(m, n),) ndarray
+        Thresholded singular values (decreasing).
+    """
+    tall = M.shape[0] >= M.shape[1]
+    G = M.T @ M if tall else M @ M.T
+    ev, V = np.linalg.eigh(G)
+    s = np.sqrt(np.maximum(ev[::-1], 0.0))
+    V = V[:, ::-1]
+    s_new = np.maximum(s - thresholds[:s.size], 0.0)
+    keep = s_new > 0
+    coef = s_new[keep] / s[keep]
+    Vk = V[:, keep]
+    Y = (M @ Vk * coef) @ Vk.T if tall else (Vk * coef) @ (Vk.T @ M)
+    return Y, s_new
 
 
 def factorize(W, K):

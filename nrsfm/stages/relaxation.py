@@ -6,7 +6,6 @@ gives. Used by :mod:`nrsfm.stages.corrective`.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -97,37 +96,32 @@ def _warm_start(cache, Z, U, rho):
     return np.array(Zw, copy=True), np.array(Uw, copy=True), float(rw)
 
 
-def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
-                   return_info=False, _cache=None):
-    """A convex relaxation that does land near the best triplet on the benchmark.
+def penalized_gram(M_hat, K, lam=1e2, max_iter=3000, tol=1e-7, _cache=None):
+    """A convex relaxation that lands near the best triplet on the benchmark.
 
     ``minimise  a trace(Q) + (lam / F) ||A vech(Q)||^2
       s.t.  Q PSD,  <M'M, Q> = 2F``
 
     with ``a = trace(M'M) / (2F 3K)`` (so that both terms are dimensionless). The
     constraint residual of Dai's equations is penalised instead of imposed (the exact
-    intersection of the approximate null space with the PSD cone is empty on real data,
-    see :func:`nrsfm.research.rotations.relaxed_gram`), the normalisation fixes the mean squared camera scale
-    ``mean_f |c_f|^2`` to 1 instead of an arbitrary sum of basis coefficients, and the
-    trace (nuclear norm on the PSD cone) pushes the solution to low rank. Which ``lam``
-    reaches the best minimum with and without noise: ``docs/rotation_stage.md``.
+    intersection of the approximate null space with the PSD cone is empty on real data),
+    the normalisation fixes the mean squared camera scale ``mean_f |c_f|^2`` to 1, and the
+    trace (nuclear norm on the PSD cone) pushes the solution to low rank. Solved by ADMM
+    (:func:`_penalized_admm`): the 3K(3K+1)/2 square Gram matrix of the constraints up
+    front, the Cholesky factor of the x-update's system whenever the step size changes, then
+    two triangular solves and a 3K x 3K eigendecomposition per iteration.
 
     Parameters
     ----------
     M_hat : (2F, 3K) ndarray
     K : int
     lam : float
-    solver : {"admm", "cvxpy"}
-        ``admm``: the ADMM below (the 3K(3K+1)/2 square Gram matrix of the constraints up
-        front, the Cholesky factor of the x-update's system whenever the step size rho
-        changes, then two triangular solves and a 3K x 3K eigendecomposition per
-        iteration).
-        ``cvxpy``: cvxpy + SCS for cross-checking.
+    max_iter, tol : int, float
+        The ADMM's iteration cap and relative residual tolerance.
 
     Returns
     -------
     Q : (3K, 3K) ndarray, symmetric PSD
-    info : dict (if ``return_info``)
     """
     M = np.asarray(M_hat, float)
     F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
@@ -139,37 +133,13 @@ def penalized_gram(M_hat, K, lam=1e2, solver="admm", max_iter=3000, tol=1e-7,
     At = _cached(_cache, "At", lambda: A / dw)              # A vech(Q) = At vec_w(Q)
     t = (iu[0] == iu[1]).astype(float)                     # trace(Q) = t . vec_w(Q)
     c = C[iu] * dw                                         # <C, Q> = c . vec_w(Q)
-    t0 = time.perf_counter()
-    if solver == "cvxpy":
-        Q, info = _penalized_cvxpy(A, C, a, lam, F, n, iu)
-    elif solver == "admm":
-        Q, info = _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, _cache)
-    else:
-        raise ValueError(f"unknown solver {solver!r}")
-    info["seconds"] = time.perf_counter() - t0
-    info["constraint_residual"] = float(np.linalg.norm(A @ Q[iu]) / np.sqrt(F))
-    return (Q, info) if return_info else Q
-
-
-def _penalized_cvxpy(A, C, a, lam, F, n, iu):
-    """The relaxation by cvxpy + SCS (the cross-check of the ADMM)."""
-    import cvxpy as cp
-
-    Qv = cp.Variable((n, n), PSD=True)
-    q = cp.hstack([Qv[i, j] for i, j in zip(*iu)])
-    prob = cp.Problem(cp.Minimize(a * cp.trace(Qv) + lam / F * cp.sum_squares(A @ q)),
-                      [cp.trace(C @ Qv) == 2 * F])
-    prob.solve(solver=cp.SCS, eps=1e-7, max_iters=50000)
-    Q = 0.5 * (Qv.value + Qv.value.T)
-    info = dict(solver="cvxpy-scs", status=prob.status)
-    return Q, info
+    return _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, _cache)
 
 
 #: over-relaxation of the ADMM's z-update (Boyd et al. 2011, sec. 3.4.3: 1.5 - 1.8 often
-#: converges faster; measured in docs/rotation_stage.md section 10)
+#: converges faster)
 OVER_RELAXATION = 1.5
-#: the ADMM's first step size, times the trace weight ``a`` (docs/rotation_stage.md
-#: section 10)
+#: the ADMM's first step size, times the trace weight ``a``
 RHO_START = 1.0 / 3.0
 
 
@@ -192,12 +162,10 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
     upper = iu[0] * n + iu[1]                          # vech entries in Q.ravel()
     sym = np.empty(n * n, dtype=np.intp)               # Q.ravel() = vech(Q)[sym]
     sym[upper] = sym[iu[1] * n + iu[0]] = np.arange(upper.size)
-    status, it, n_fact = "max_iter", 0, 0
     Hc = None
     for it in range(1, max_iter + 1):
         if Hc is None:
             L = _system_factor(AtA, 2.0 * lam / F, rho)
-            n_fact += 1
             Hc = _solve(L, c)                          # H^-1 c
             cHc = c @ Hc
         rhs = rho * (np.take(Z - U, upper) * dw) - a * t
@@ -213,7 +181,6 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
         U += Qh - Z
         rn, sn, scale = _frobenius(r), _frobenius(Z - Z_old), max(_frobenius(Z), 1e-300)
         if rn < tol * scale and sn < tol * scale:
-            status = "converged"
             break
         if it % 10 == 0:                               # residual balancing
             if rn > 10 * sn:
@@ -227,33 +194,13 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
     Q = 0.5 * (Z + Z.T)
     if cache is not None:
         cache["warm"] = (Z, U, rho)
-    info = dict(solver="admm", status=status, iterations=it, rho=rho, factorizations=n_fact,
-                primal_residual=float(rn))
-    return Q, info
+    return Q
 
 
-def triplets_from_gram(Q, mode="eig"):
-    """Triplets from a (relaxed) Gram matrix.
-
-    Parameters
-    ----------
-    Q : (3K, 3K) symmetric ndarray
-    mode : {"eig", "columns"}
-        ``eig``: one triplet ``V_3 sqrt(L_3)`` from the top-3 eigenpairs (Dai).
-        ``columns``: the K column blocks ``Q[:, 3k:3k+3]`` (for Q = G G' of rank 3 each
-        is G times a 3 x 3 matrix: a valid triplet up to an affine map that refinement
-        removes) -- the paper's "K column triplets" read literally.
-
-    Returns
-    -------
-    G : (m, 3K, 3) ndarray (m = 1 for ``eig``, K for ``columns``)
-    """
+def triplets_from_gram(Q):
+    """The triplet ``V_3 sqrt(L_3)`` (3K, 3) of a (relaxed) Gram matrix Q (3K, 3K): its
+    top-3 eigenpairs (Dai et al.)."""
     Q = 0.5 * (np.asarray(Q, float) + np.asarray(Q, float).T)
-    n = Q.shape[0]
-    if mode == "eig":
-        w, V = np.linalg.eigh(Q)
-        w, V = w[::-1][:3], V[:, ::-1][:, :3]
-        return (V * np.sqrt(np.clip(w, 0, None)))[None]
-    if mode == "columns":
-        return np.stack([Q[:, 3 * k:3 * k + 3] for k in range(n // 3)])
-    raise ValueError(f"unknown mode {mode!r}")
+    w, V = np.linalg.eigh(Q)
+    w, V = w[::-1][:3], V[:, ::-1][:, :3]
+    return V * np.sqrt(np.clip(w, 0, None))

@@ -240,7 +240,7 @@ def _stage_lines(result, c):
              f"- rotation stage: {'ran' if rs is not None else 'skipped (rotations given)'}",
              f"- shape stage: {'ran' if ss is not None else 'skipped (pseudo-inverse + rank-K truncation)'}"]
     if ss is not None:
-        solver = result.params.get("shape_solver", "admm")
+        solver = ss.solver
         lines.append(f"- shape solver {solver}: {_stage_value(ss, 'n_iter')} iterations, "
                      f"converged = {_stage_value(ss, 'converged')}")
         if _stage_value(ss, "grad_norm") is not None:
@@ -250,8 +250,6 @@ def _stage_lines(result, c):
     if c.triplet_kept is not None:
         lines.append(f"- rotation samples kept by the filter: {int(c.triplet_kept.sum())} of "
                      f"{c.triplet_kept.size}")
-    if rs is not None and _stage_value(rs, "strategy") is not None:
-        lines.append(f"- rotation strategy: {_stage_value(rs, 'strategy')}")
     return lines
 
 
@@ -265,7 +263,11 @@ def _report(result, sequence, c):
     lines += [f"| {k} | {v:.6g} |" for k, v in c.errors.items()]
     lines += [""] + _stage_lines(result, c)
     lines += ["", "## Parameters", "", "| parameter | value |", "| --- | --- |"]
-    lines += [f"| {k} | {_fmt(v)} |" for k, v in result.params.items()]
+    params = dict(method=result.method, K=result.K, seed=result.seed,
+                  rotations_given=result.rotation_stage is None,
+                  shape_solver=result.settings.shape_solver,
+                  scale=result.scale)
+    lines += [f"| {k} | {_fmt(v)} |" for k, v in params.items()]
     lines += ["", "## Timings (s)", "", "| stage | seconds |", "| --- | --- |"]
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
     if getattr(result, "diagnostics", None) is not None:

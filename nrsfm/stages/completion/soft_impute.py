@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shape.fit_set import weighted_svt
+from ..measurement import weighted_svt
 from .lags import NEIGHBOUR_LAGS, lag_copies
 from .masks import observed_entries
 from .result import Completion

@@ -16,12 +16,8 @@ Conventions
 
 The K triplets (the paper says only "using Dai et al." for every k): the best one of the
 search and K - 1 refined on temporal windows. W of numerical rank r < 3K: the stage runs in
-the determined r-dimensional subspace of ``M_hat`` (:mod:`.subspace`).
-:func:`estimate_rotations` runs ``organic`` and ``bmm``
-(:class:`RotationSettings`); research strategies (``family``: the family combination after
-the average, the default before issue 18) live in :mod:`nrsfm.research`, whose settings
-derive from :class:`RotationSettings` and run through the same :func:`run_rotation_stage`.
-Measurements: ``docs/rotation_stage.md``.
+the determined r-dimensional subspace of ``M_hat`` (:mod:`.subspace`). Why this default:
+``docs/studies/rotations.md``.
 """
 
 from __future__ import annotations
@@ -29,12 +25,10 @@ from __future__ import annotations
 from .lifting import (FLIP, MIRROR, filter_rotations, register_rotations,
                       resolve_depth_signs, rotations_from_triplets)
 from .stage import (RotationResult, RotationSettings, estimate_rotations, register_triplets,
-                    rotations_from_triplet_set, run_rotation_stage, triplets_on_subsets,
-                    window_weights)
+                    triplets_on_subsets, window_weights)
 from .subspace import DETERMINED_RTOL, determined_subspace, effective_K, lower_minimum
 
 __all__ = ["DETERMINED_RTOL", "FLIP", "MIRROR", "RotationResult", "RotationSettings",
            "determined_subspace", "effective_K", "estimate_rotations", "filter_rotations",
            "lower_minimum", "register_rotations", "register_triplets", "resolve_depth_signs",
-           "rotations_from_triplet_set", "rotations_from_triplets", "run_rotation_stage",
-           "triplets_on_subsets", "window_weights"]
+           "rotations_from_triplets", "triplets_on_subsets", "window_weights"]

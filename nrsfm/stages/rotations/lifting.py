@@ -150,18 +150,15 @@ def register_rotations(R_ref, R_k, weights=None, handedness="both"):
 
 
 # --------------------------------------------------------------------------- filtering
-def filter_rotations(registered, reference, delta=0.05, metric="angle", valid=None):
-    """Keep the samples within ``delta`` of the reference (paper: delta = 0.05).
+def filter_rotations(registered, reference, delta=0.05, valid=None):
+    """Keep the samples within ``delta`` (geodesic angle, rad; paper: 0.05 = 2.9 degrees)
+    of the reference.
 
     Parameters
     ----------
     registered : (m, F, 3, 3) ndarray
     reference : (F, 3, 3) ndarray
     delta : float
-    metric : {"angle", "chordal"}
-        ``angle``: geodesic angle in radians, the metric the L1 average minimises (0.05 rad
-        = 2.9 degrees). ``chordal``: ``||R - R_ref||_F`` (= 2 sqrt(2) sin(angle / 2),
-        so 0.05 is 2.0 degrees).
     valid : (m, F) bool, optional
         Samples already known to be unusable.
 
@@ -170,12 +167,7 @@ def filter_rotations(registered, reference, delta=0.05, metric="angle", valid=No
     kept : (m, F) bool
     distance : (m, F) ndarray
     """
-    if metric == "angle":
-        dist = rotation_angle(registered, reference[None])
-    elif metric == "chordal":
-        dist = np.linalg.norm(registered - reference[None], axis=(-2, -1))
-    else:
-        raise ValueError(f"unknown metric {metric!r}")
+    dist = rotation_angle(registered, reference[None])
     kept = dist <= delta
     if valid is not None:
         kept &= valid

@@ -8,8 +8,7 @@ result one answer when W has numerical rank below 3K.
   Solving in the r-dimensional subspace removes them (``M_hat G = M_r G_r`` for
   ``G = V_r G_r``).
 * :func:`effective_K`: the number of shape bases whose cameras the subspace can hold.
-* :func:`in_determined_subspace` / :func:`lift_result`: the rotation stage's entry and exit
-  (:func:`nrsfm.stages.rotations.run_rotation_stage`).
+* :func:`lift_triplets`: the triplets of the subspace as triplets of the full factor.
 * :func:`lower_minimum`: a failed triplet search against a model that does not fit exactly.
 """
 
@@ -22,7 +21,7 @@ import numpy as np
 from ..corrective import search_triplet
 
 __all__ = ["DETERMINED_RTOL", "Subspace", "determined_subspace", "effective_K",
-           "in_determined_subspace", "lift_result", "lift_triplets", "lower_minimum"]
+           "lift_triplets", "lower_minimum"]
 
 #: singular values of W below ``DETERMINED_RTOL * s_1`` count as zero (a numerical
 #: tolerance: float64 rounding leaves about 1e-16 s_1, perturbations of 1e-7 of W's entries
@@ -112,60 +111,6 @@ def lift_triplets(G_r, sub):
     return np.einsum("ir,...rj->...ij", sub.V, G_r)
 
 
-def in_determined_subspace(M, K, enabled=True, say=None):
-    """The rotation stage's motion factor and K: the determined subspace when W's rank r is
-    below 3K (``enabled``), ``M`` and K unchanged otherwise.
-
-    Parameters
-    ----------
-    M : (2F, 3K) ndarray
-    K : int
-    enabled : bool
-        ``RotationSettings.determined``.
-    say : callable(str) or None
-
-    Returns
-    -------
-    M_used : (2F, r) or (2F, 3K) ndarray
-    K_used : int
-        ``effective_K(r, K)`` or K.
-    sub : Subspace or None
-        None when not enabled.
-    info : dict
-        ``determined_rank``, ``effective_K``.
-    """
-    sub = determined_subspace(M) if enabled else None
-    rank = sub.rank if sub is not None else M.shape[1]
-    if sub is None or not sub.deficient:
-        return M, K, sub, dict(determined_rank=rank, effective_K=K)
-    k = effective_K(sub.rank, K)
-    if say is not None:
-        say(f"W has numerical rank {sub.rank} < 3K = {3 * K}: rotations from the "
-            f"determined {sub.rank}-dimensional subspace, {k} triplet(s)")
-    return sub.M, k, sub, dict(determined_rank=rank, effective_K=k)
-
-
-def lift_result(result, sub, K):
-    """A rotation result of the subspace as one of the full motion factor (in place).
-
-    ``G`` and the triplets in ``info`` (``G_refit``, ``G_family``) become (m, 3K, 3)
-    (:func:`lift_triplets`); ``params["K"]`` becomes K. Nothing is done when ``sub`` is
-    None or of full rank.
-
-    Returns
-    -------
-    RotationResult
-    """
-    if sub is None or not sub.deficient:
-        return result
-    result.G = lift_triplets(result.G, sub)
-    for key in ("G_refit", "G_family"):
-        if key in result.info:
-            result.info[key] = lift_triplets(result.info[key], sub)
-    result.params["K"] = K
-    return result
-
-
 def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
     """Whether seeded random starts reach a lower Dai cost than ``cost`` (a failed search).
 
@@ -193,7 +138,7 @@ def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
         The lowest cost the extra starts reached.
     """
     sub = determined_subspace(M_hat)
-    _, costs, _ = search_triplet(sub.M, effective_K(sub.rank, K), seed=seed + 1,
-                                 hits=n_starts + 1, max_starts=n_starts, lams=())
-    best = float(costs[0])
+    search = search_triplet(sub.M, effective_K(sub.rank, K), seed=seed + 1,
+                            hits=n_starts + 1, max_starts=n_starts, lams=())
+    best = float(search.costs[0])
     return bool(best < cost * (1.0 - rtol)), best

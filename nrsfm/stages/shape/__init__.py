@@ -1,100 +1,36 @@
 """Shape stage (paper Sec. 3.2): per-frame shapes X from W and the cameras R.
 
-One interface for every solver: :func:`solve_shape` with a :class:`ShapeSettings` returns
-one result type, :class:`ShapeResult`.
+:func:`solve_shape` runs one of two solvers of the same weighted nuclear norm problem
+(Eq. 8, 10), each with its settings class, and returns one result type,
+:class:`ShapeResult`:
 
-Solvers (one module each; each holds its settings class, which registers it in
-:data:`SOLVERS`):
+* ``bilinear`` (:mod:`.bilinear`, :class:`BilinearSettings`, the default): the factored
+  weighted nuclear norm minimised to a verified stationary point;
+* ``admm`` (:mod:`.admm`, :class:`AdmmSettings`): the paper's continuation ADMM.
 
-* ``bilinear`` (:mod:`.bilinear`, default): the factored weighted nuclear norm minimised
-  to a verified stationary point;
-* ``admm`` (:mod:`.admm`): the paper's continuation ADMM;
-* ``closed_form`` (:mod:`.bilinear`, from :mod:`.closed_form`): the exact rank-K solution,
-  no prior;
-* ``constrained`` (:mod:`.constrained`, optional): the organic norm with W fitted to within
-  its noise (exact on rank-K and rank-deficient data; worse under noise and slower);
-* ``pseudo_inverse`` (:mod:`.pseudo_inverse`): rank-K truncation of ``pinv(R) W``.
-
-A new solver is one module: a frozen dataclass deriving from
-:class:`~nrsfm.stages.shape.base.SolverSettings` with a ``name`` and a ``solve`` method
-(:mod:`.base`). Every module of this package is imported here, so a module added to the
-package is registered without editing any list.
+The ``pseudo_inverse`` method's rank-K truncation of ``pinv(R) W`` (Table 1) is
+:func:`solve_pseudo_inverse`. Why the bilinear solver is the default:
+``docs/studies/shape.md``.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
-import pkgutil
-from dataclasses import dataclass
+import numpy as np
 
-from ...validation import check_choice, check_flag
-from .base import PRIORS, SOLVERS, SolverSettings
+from .admm import AdmmSettings
 from .bilinear import BilinearSettings
-from .common import ShapeResult, phi, phi_inv, pseudo_inverse_shapes, truncate_rank
+from .common import (PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv,
+                     pseudo_inverse_shapes, truncate_rank)
 
-for _module in pkgutil.iter_modules(__path__):          # registers every solver module
-    importlib.import_module(f"{__name__}.{_module.name}")
+__all__ = ["PRIORS", "SOLVERS", "AdmmSettings", "BilinearSettings", "ShapeResult", "phi",
+           "phi_inv", "pseudo_inverse_shapes", "solve_pseudo_inverse", "solve_shape",
+           "truncate_rank"]
 
-__all__ = ["PRIORS", "SOLVERS", "ShapeResult", "ShapeSettings", "SolverSettings", "phi",
-           "phi_inv", "pseudo_inverse_shapes", "solve_shape", "solve_shapes",
-           "solver_settings", "truncate_rank"]
-
-
-@dataclass(frozen=True)
-class ShapeSettings:
-    """Shape stage settings: the prior and one solver's settings.
-
-    Attributes
-    ----------
-    prior : {"organic", "weighted", "nuclear"} or None
-        The regulariser (:data:`~nrsfm.stages.shape.base.PRIORS`); None exactly for the
-        solvers that take no prior (``closed_form``, ``pseudo_inverse``).
-    solver : SolverSettings
-        The solver and its typed settings (any registered in :data:`SOLVERS`).
-    select_rotations : bool
-        When the rotation stage ran: solve the shape in full for each of the stage's
-        rotation candidates (its rotations and its best single triplet's) and keep the lower
-        shape objective (:mod:`nrsfm.stages.selection`). False (default): one solve, for
-        the stage's rotations.
-    """
-
-    prior: str = "organic"
-    solver: SolverSettings = BilinearSettings()
-    select_rotations: bool = False
-
-    def __post_init__(self):
-        if not isinstance(self.solver, SolverSettings) or not self.solver.name:
-            raise ValueError(f"solver must be the settings of a registered shape solver "
-                             f"(e.g. BilinearSettings()); got {self.solver!r}")
-        if self.solver.uses_prior:
-            check_choice("shape prior", self.prior, PRIORS)
-        elif self.prior is not None:
-            raise ValueError(f"the {self.solver.name} solver takes no prior; got "
-                             f"prior={self.prior!r} (use prior=None)")
-        check_flag("select_rotations", self.select_rotations)
+#: name -> settings class of the two shape solvers
+SOLVERS = {"bilinear": BilinearSettings, "admm": AdmmSettings}
 
 
-def solver_settings(name, options=None):
-    """Settings of a registered shape solver from a dict of options.
-
-    Raises
-    ------
-    ValueError
-        Unknown solver (the registered ones are named), or an option the solver does not
-        take (its options are named).
-    """
-    cls = SOLVERS[check_choice("shape_solver", name, SOLVERS)]
-    options = dict(options or {})
-    fields = {f.name for f in dataclasses.fields(cls)}
-    unknown = set(options) - fields
-    if unknown:
-        raise ValueError(f"unknown options {sorted(unknown)} for shape_solver {name!r}; "
-                         f"it takes {sorted(fields)}")
-    return cls(**options)
-
-
-def solve_shape(W, R, K, settings=None, progress=None, observed=None, start=None):
+def solve_shape(W, R, K, prior="organic", settings=None, progress=None):
     """Run the shape stage.
 
     Parameters
@@ -103,39 +39,45 @@ def solve_shape(W, R, K, settings=None, progress=None, observed=None, start=None
         Row-centred measurements (any units: the solvers return shapes in W's units).
     R : (F, 3, 3) or (F, 2, 3) ndarray
     K : int
-    settings : ShapeSettings, optional
-        Prior and solver settings; default ``ShapeSettings()`` (organic, bilinear).
+    prior : {"organic", "weighted", "nuclear"}
+        The regulariser (:data:`PRIORS`): the partial sum of the weighted singular values
+        (Eq. 10, N = 1), all of them weighted (Eq. 8), or the plain nuclear norm (Eq. 7).
+    settings : BilinearSettings or AdmmSettings, optional
+        The solver and its settings; default ``BilinearSettings()``.
     progress : callable(str) or None
-    observed : (F, P) bool ndarray, optional
-        Fit the data term on these entries only (W still finite elsewhere, e.g. completed).
-        Only a solver with ``masked = True`` (the ADMM) takes a partial mask; the others
-        raise a ValueError rather than ignore it.
-    start : ShapeResult, optional
-        The same solver's result on the same W with nearby cameras: the starting point of a
-        solver with ``warm_start = True``. Only for a solver that takes one (ValueError
-        otherwise); it changes where the solver starts, not the problem.
 
     Returns
     -------
     ShapeResult
+
+    Raises
+    ------
+    ValueError
+        Unknown prior, settings of another type, bad shapes of W or R.
     """
-    settings = ShapeSettings() if settings is None else settings
-    if not isinstance(settings, ShapeSettings):
-        raise ValueError(f"settings must be a ShapeSettings; got {settings!r}")
-    if start is None:
-        return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed)
-    if not settings.solver.warm_start:
-        raise ValueError(f"the {settings.solver.name} shape solver takes no start")
-    return settings.solver.solve(W, R, K, settings.prior, progress, observed=observed,
-                                 start=start)
+    settings = BilinearSettings() if settings is None else settings
+    if not isinstance(settings, tuple(SOLVERS.values())):
+        raise ValueError(f"settings must be a BilinearSettings or an AdmmSettings; got "
+                         f"{settings!r}")
+    return settings.solve(W, R, K, check_prior(prior), progress)
 
 
-def solve_shapes(W, R, K, prior=None, solver="bilinear", progress=None, **options):
-    """:func:`solve_shape` with the solver named and its options as keywords (converted
-    into the solver's settings type by :func:`solver_settings`). ``prior`` defaults to
-    ``organic`` for the solvers that take one; giving a prior to a solver that takes none
-    is a ValueError."""
-    settings = solver_settings(solver, options)
-    if prior is None and settings.uses_prior:
-        prior = "organic"
-    return solve_shape(W, R, K, ShapeSettings(prior=prior, solver=settings), progress)
+def solve_pseudo_inverse(W, R, K):
+    """The ``pseudo_inverse`` method's shapes: ``X = P_K[pinv(R) W]``, the shape of every
+    frame that reproduces W exactly (minimum norm, planar per frame) projected onto the top-K
+    singular vectors of ``X#``. No prior, no iterations.
+
+    Returns
+    -------
+    ShapeResult
+        ``objective`` is the data term ``1/2 ||W - R X||_F^2``; an empty ``history``.
+    """
+    W, Rf, F, P, K = check_shape_inputs(W, R, K)
+    X_init = pseudo_inverse_shapes(W, R)
+    shapes = truncate_rank(X_init, K)
+    data = 0.5 * float(np.sum((W.reshape(F, 2, P) - Rf @ shapes) ** 2))
+    return ShapeResult(shapes=shapes, X_init=X_init,
+                       X_init_singular_values=np.linalg.svd(phi(X_init), compute_uv=False),
+                       theta=None, N=K, prior="none", solver="pseudo_inverse",
+                       converged=True, objective=data, optimality=0.0,
+                       optimality_kind="exact", params=dict(K=K))

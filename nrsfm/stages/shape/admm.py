@@ -20,23 +20,21 @@ on the units of W: :func:`solve_admm`, the stage's entry, runs it on ``W / s`` w
 ``s = ||W||_F / TARGET_FROBENIUS`` and multiplies the shapes by ``s``. The rule uses W alone
 and is homogeneous of degree one, so the stage is exactly scale invariant; but 170 is a
 setting of this solver, chosen on the eight MoCap sequences (other targets give different
-answers, see ``docs/shape_stage.md``). The other solvers are scale-free.
+answers, ``docs/studies/shape.md``). The bilinear solver is scale-free.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar, Optional
 
 import numpy as np
 
-from ...noise import noise_level
-from ...validation import check_choice, check_integer, check_measurements, check_positive
-from .base import PRIORS, SolverSettings, check_prior
-from .common import ShapeResult, check_shape_inputs, phi, phi_inv, truncate_rank
-from .fit_set import weighted_svt
+from ...validation import check_integer, check_positive
+from ..measurement import weighted_svt
+from .common import PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv, \
+    truncate_rank
 
 __all__ = ["AdmmSettings", "TARGET_FROBENIUS", "admm_iterations", "normalization_scale",
            "psvt", "shape_weights", "solve_admm"]
@@ -50,14 +48,14 @@ PROGRESS_EVERY = 100
 
 
 @dataclass(frozen=True)
-class AdmmSettings(SolverSettings):
+class AdmmSettings:
     """The paper's continuation ADMM (``shape_solver="admm"``).
 
     Attributes
     ----------
     N : int or None
         Leading singular values left unpenalised; default from the prior
-        (:data:`nrsfm.stages.shape.base.PRIORS`).
+        (:data:`nrsfm.stages.shape.PRIORS`). The paper's ablation varies it (Fig. 3d).
     mu : float
         Weight of the regulariser (paper: 1).
     rho0, lam, rho_max : float
@@ -69,18 +67,14 @@ class AdmmSettings(SolverSettings):
     max_iter : int
         Safety cap on iterations (the rho schedule alone stops after
         ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
-    init : {"rank_k", "full"}
-        Start ``X = X# =`` the rank-K truncation of X_init (``rank_k``) or X_init itself.
-    mu_noise : float or None
-        When set, the weight follows the noise of W: ``mu = max(mu, mu_noise nr^2)`` with
-        ``nr`` the noise level of W beyond rank 3K (:func:`nrsfm.noise.noise_level`) over
-        W's RMS entry (a study of issue 22, ``docs/shape_stage.md``: the best weight grew
-        as the square of the noise on real shapes). None: ``mu`` as given (the paper).
+
+    Raises
+    ------
+    ValueError
+        A value out of range (named in the message).
     """
 
     name: ClassVar[str] = "admm"
-    masked: ClassVar[bool] = True
-    INITS: ClassVar[tuple] = ("rank_k", "full")
     N: Optional[int] = None
     mu: float = 1.0
     rho0: float = 1e-4
@@ -90,8 +84,6 @@ class AdmmSettings(SolverSettings):
     xi: Optional[float] = None
     gamma: float = 1e-6
     max_iter: int = 1000
-    init: str = "rank_k"
-    mu_noise: Optional[float] = None
 
     def __post_init__(self):
         if self.N is not None:
@@ -105,12 +97,9 @@ class AdmmSettings(SolverSettings):
         if self.xi is not None:
             check_positive("xi", self.xi)
         check_integer(self.max_iter, "max_iter", minimum=1)
-        check_choice("init", self.init, self.INITS)
-        if self.mu_noise is not None:
-            check_positive("mu_noise", self.mu_noise, strict=False)
 
-    def solve(self, W, R, K, prior, progress=None, observed=None):
-        return solve_admm(W, R, K, prior, self, progress, self.check_observed(observed, W))
+    def solve(self, W, R, K, prior, progress=None):
+        return solve_admm(W, R, K, prior, self, progress)
 
 
 def normalization_scale(W):
@@ -251,7 +240,7 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
 # ADMM (Eq. 10-14)
 # --------------------------------------------------------------------------------------
 
-def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
+def admm_iterations(W, R, K, prior, settings, progress=None):
     """Low-rank shape by ADMM on Eq. (10) with the PSVT X# step (paper Sec. 3.2).
 
     Parameters
@@ -262,16 +251,12 @@ def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
     R : (F, 3, 3) or (F, 2, 3) ndarray
         Camera rotations; the first two rows of each must be orthonormal.
     K : int
-        Number of shape bases (used by ``init="rank_k"``; recorded in ``params``).
+        Number of shape bases (the start is the rank-K truncation of X_init).
     prior : {"organic", "weighted", "nuclear"}
         Thresholding rule, see the module docstring.
     settings : AdmmSettings
     progress : callable(str) or None
         Called with a line every 100 iterations and at the end.
-    observed : (F, P) bool ndarray, optional
-        The data term on these entries only (a masked Eq. 10): an unobserved point of a
-        frame follows the low-rank variable alone in the X step. W must still be finite
-        there (a completed W: X_init and the weights come from it).
 
     Returns
     -------
@@ -290,17 +275,14 @@ def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
     * X step, per frame in closed form (Eq. 13):
       ``X_f = (R_f'R_f + rho I)^-1 (R_f'W_f + rho Z_f)``. For orthonormal rows,
       ``R_f'R_f`` is the projector onto the image plane, and the inverse reduces to
-      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames); with
-      ``observed``, the correction only on the observed points (``X_fp = Z_fp`` elsewhere).
+      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames).
     * X# step (Eq. 14 and the PSVT operator, Eq. 16-17):
       ``X# = P_{N, mu theta / rho}[Phi(X) - Y / rho]``.
     * ``Y += rho (X# - Phi(X))``; ``rho = min(rho_max, lam rho)``.
     * Stop when ``max |X# - Phi(X)| < eps`` or ``rho >= rho_max``.
 
-    ``Y`` starts at zero.
-
-    The iterate returned is X, the data-step variable. Open details (init, stopping,
-    lam) were decided by measurement; see ``docs/shape_stage.md``.
+    ``X = X#`` start at the rank-K truncation of X_init, ``Y`` at zero. The iterate returned
+    is X, the data-step variable.
     """
     check_prior(prior)
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
@@ -311,8 +293,7 @@ def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
     X_init = Rf.transpose(0, 2, 1) @ Wf             # pinv(R_f) = R_f' for orthonormal rows
     sigma = np.linalg.svd(phi(X_init), compute_uv=False)
     theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
-    mask = None if observed is None else np.asarray(observed, float)[:, None, :]
-    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask)
+    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say)
     resid = hist["residual"][-1]
     say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
         f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
@@ -324,21 +305,14 @@ def admm_iterations(W, R, K, prior, settings, progress=None, observed=None):
                        optimality=resid, optimality_kind="residual", params=params)
 
 
-def solve_admm(W, R, K, prior, settings, progress=None, observed=None):
+def solve_admm(W, R, K, prior="organic", settings=None, progress=None):
     """The shape stage's ADMM: :func:`admm_iterations` on ``W / s``,
     ``s = normalization_scale(W)``, with ``shapes``, ``X_init`` and its singular values
     returned in W's units (``theta`` and ``history`` stay in the ADMM's units;
-    ``params["admm_scale"]`` is s). ``observed``: see :func:`admm_iterations`."""
+    ``params["admm_scale"]`` is s)."""
     s = normalization_scale(W)
-    noise_rel = None
-    if settings.mu_noise is not None:
-        Wc = check_measurements(W)
-        rms = float(np.sqrt(np.mean(Wc ** 2)))
-        noise_rel = noise_level(Wc, K) / rms if rms > 0 else 0.0
-        settings = dataclasses.replace(settings, mu=max(settings.mu,
-                                                        settings.mu_noise * noise_rel ** 2))
-    res = admm_iterations(W / s, R, K, prior, settings, progress, observed)
-    res.params["noise_rel"] = noise_rel
+    settings = AdmmSettings() if settings is None else settings
+    res = admm_iterations(W / s, R, K, prior, settings, progress)
     res.shapes, res.X_init = res.shapes * s, res.X_init * s
     res.X_init_singular_values = res.X_init_singular_values * s
     res.params["admm_scale"] = s
@@ -360,14 +334,13 @@ def _admm_weights(sigma, prior, N, settings):
     return theta, reg_w, xi
 
 
-def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask=None):
-    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`); ``mask``
-    (F, 1, P) of 0/1, or None, leaves the unobserved points out of the data term.
+def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
+    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`).
 
     Returns (X, history of arrays, iterations, converged)."""
     F, _, P = Wf.shape
     Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
-    X = truncate_rank(X_init, K) if st.init == "rank_k" else X_init.copy()
+    X = truncate_rank(X_init, K)
     Xs = phi(X).copy()
     Y = np.zeros_like(Xs)
     rho = st.rho0
@@ -377,8 +350,7 @@ def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask=None):
     for n_iter in range(1, st.max_iter + 1):
         # X step (Eq. 13), closed form per frame, vectorised.
         Z = phi_inv(Xs + Y / rho, P)
-        E = Wf - Rf @ Z if mask is None else mask * (Wf - Rf @ Z)
-        X = Z + Rt @ E / (1.0 + rho)
+        X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
         # X# step (Eq. 14, 17): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho (the
         # first N zero, the rest non-decreasing: weighted SVT from the shorter side's Gram
         # matrix, 2.5 x faster than an SVD at pickup's size)
@@ -387,8 +359,7 @@ def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say, mask=None):
         D = Xs - phi(X)
         Y += rho * D
         resid = float(np.abs(D).max())
-        E = Wf - Rf @ X if mask is None else mask * (Wf - Rf @ X)
-        data = 0.5 * float(np.sum(E ** 2))
+        data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
         hist["cost"].append(data + float(reg_w @ s_new))
         hist["data_term"].append(data)
         hist["residual"].append(resid)

@@ -20,7 +20,7 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   (:func:`nrsfm.noise.noise_level`), ``sigma_1`` that of X_init#: under noise the penalty
   of the i-th singular value is ``mu_noise noise^2 (F + 2P) / sigma_i``, the form of the
   optimal shrinkage of singular values (Gavish and Donoho, IEEE Trans. Inf. Theory 2017).
-  ``mu_factor = 0.01``, ``mu_noise = 5``: measured, ``docs/shape_stage.md``. Noise-free,
+  ``mu_factor = 0.01``, ``mu_noise = 5`` (``docs/studies/shape.md``). Noise-free,
   exactly rank-3K W gives ``mu`` = 0 (to rounding) and (*) is the exact rank-K fit.
 * Rank r from W and the prior (``rank=None``): K where W is itself of rank at most 3K (its
   numerical rank is below 3K, or ``s_3K+1 / s_3K < GAP_MAX``: a rank-K shape model plus
@@ -46,39 +46,34 @@ rank r, in a smooth form whose stationary points can be verified by their gradie
   thin SVD of W and the singular values of X_init# (from its smaller Gram matrix). Stops
   when the relative gradient norm is below ``gtol``.
 
-Settings and measurements: ``docs/shape_stage.md``.
-
-:class:`ClosedFormSettings` (``shape_solver="closed_form"``) is this solver with ``mu = 0``
-and no iterations from the closed-form start of :mod:`.closed_form`.
+Why these settings: ``docs/studies/shape.md``.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import ClassVar, Optional
 
 import numpy as np
 
 from ...noise import noise_from_singular_values
-from ..measurement import left_singular
-from ...validation import check_choice, check_integer, check_positive
+from ...validation import check_integer, check_positive
 from ...warnings_catalog import text
-from .base import SolverSettings, check_prior
+from ..measurement import left_singular
 from ..rotations.subspace import DETERMINED_RTOL
-from .admm import AdmmSettings, solve_admm
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
+from .common import ShapeResult, check_prior, check_shape_inputs
 from .factors import (c_step, minimise, objective, project, rank_certificate,
                       reduced_objective, relative_gradient, viewing_directions)
-from .common import ShapeResult, check_shape_inputs
 
-__all__ = ["BilinearSettings", "ClosedFormSettings", "GAP_MAX", "bilinear_weights",
-           "prior_rank", "solve_bilinear", "solve_closed_form"]
+__all__ = ["BilinearSettings", "GAP_MAX", "bilinear_weights", "prior_rank",
+           "solve_bilinear"]
 
 #: W counts as of rank at most 3K (the rank-K model) when s_3K+1 / s_3K is below this
 #: (measured: 0.06 - 0.27 for rank-K shapes under 2 - 10 % noise, 0.72 - 0.92 for the real
-#: shapes, docs/shape_stage.md)
+#: shapes)
 GAP_MAX = 0.5
 #: at most this many fits, each at a rank from the one before (a column added where the
 #: rank certificate wants one, the rank doubled when every column is used)
@@ -98,7 +93,7 @@ CERTIFICATE_SLACK = 1e-3
 
 
 @dataclass(frozen=True)
-class BilinearSettings(SolverSettings):
+class BilinearSettings:
     """The factored weighted nuclear norm (*) (``shape_solver="bilinear"``, the default).
 
     Attributes
@@ -109,7 +104,7 @@ class BilinearSettings(SolverSettings):
         the rank certificate wants one).
     mu_factor : float
         The clean-data term ``mu_factor * noise_level(W, K) * (sqrt(F) + sqrt(3P))`` of mu
-        (measured: 0.01, ``docs/shape_stage.md``).
+        (measured: 0.01).
     mu_noise : float
         The noise term ``mu_noise * noise^2 * (F + 2P) / sigma_1(X_init#)`` (measured: 5);
         mu is the larger of the two terms.
@@ -120,32 +115,23 @@ class BilinearSettings(SolverSettings):
         Used only when the rank-K fit is not unique (the closed form's (K+1)-th eigenvalue
         at rounding level): ``mu`` is raised to ``min_mu ||W||_F`` and a RuntimeWarning is
         issued. Measured on shark only.
-    init : {"closed_form", "rank_k", "admm", "best"}
-        The start: ``closed_form``, the exact rank-K fit (:func:`_start`); ``rank_k``,
-        the leading singular vectors of X_init# (zero depth); ``admm``, those of the
-        paper's ADMM's answer (:func:`.admm.solve_admm`, its default settings, the same
-        prior); ``best``, solved from ``closed_form`` and from ``admm``, the lower
-        objective kept (ties: ``closed_form``). On 33 rows with ground-truth rotations
-        ``best`` reaches a lower E on 3 (stretch: e3d .0152 -> .0126; ``back`` on a smooth
-        180-degree path: E 8 % lower, e3d .0445 -> .0221), at 2.5 - 4 x the time
-        (``docs/shape_stage.md``). The rank-K fit's uniqueness is tested (and warned
-        about) whatever the start. With ``start`` given (:func:`solve_bilinear`) the fit
-        starts from it, whatever ``init``.
     gtol : float
         Stop when the relative gradient norm is at most gtol.
     max_iter : int
         Cap on L-BFGS iterations (0: the start only).
+
+    Raises
+    ------
+    ValueError
+        A value out of range (named in the message).
     """
 
     name: ClassVar[str] = "bilinear"
-    warm_start: ClassVar[bool] = True
-    INITS: ClassVar[tuple] = ("closed_form", "rank_k", "admm", "best")
     rank: Optional[int] = None
     mu_factor: float = 0.01
     mu_noise: float = 5.0
     mu: Optional[float] = None
     min_mu: float = 1e-5
-    init: str = "closed_form"
     gtol: float = 1e-8
     max_iter: int = 3000
 
@@ -156,48 +142,10 @@ class BilinearSettings(SolverSettings):
             check_positive(name, getattr(self, name), strict=False)
         if self.mu is not None:
             check_positive("mu", self.mu, strict=False)
-        check_choice("init", self.init, self.INITS)
         check_integer(self.max_iter, "max_iter", minimum=0)
 
-    def solve(self, W, R, K, prior, progress=None, observed=None, start=None):
-        self.check_observed(observed, W)
-        return solve_bilinear(W, R, K, prior, self, progress, start)
-
-
-@dataclass(frozen=True)
-class ClosedFormSettings(SolverSettings):
-    """The exact rank-K solution, no prior (``shape_solver="closed_form"``), reported with
-    the bilinear solver's measures.
-
-    Attributes
-    ----------
-    gtol : float
-        Tolerance for ``converged`` (relative gradient norm of the plain rank-K fit).
-    """
-
-    name: ClassVar[str] = "closed_form"
-    uses_prior: ClassVar[bool] = False
-    gtol: float = 1e-6
-
-    def __post_init__(self):
-        check_positive("gtol", self.gtol, strict=False)
-
-    def solve(self, W, R, K, prior=None, progress=None, observed=None):
-        self.check_observed(observed, W)
-        return solve_closed_form(W, R, K, self, progress)
-
-
-def solve_closed_form(W, R, K, settings=ClosedFormSettings(), progress=None):
-    """The closed-form rank-K shape as a shape-stage result: the bilinear solver with
-    ``mu = 0`` and no iterations (B from :func:`closed_form_coefficients`, C by least
-    squares); the result reports the data term and the relative gradient norm of the plain
-    rank-K fit at that point. No prior."""
-    res = _bilinear(W, R, K, "nuclear", BilinearSettings(rank=K, mu=0.0, max_iter=0,
-                                                       gtol=settings.gtol),
-                    progress)
-    res.prior, res.solver = "none", "closed_form"
-    res.params["prior"] = "none"
-    return res
+    def solve(self, W, R, K, prior, progress=None):
+        return solve_bilinear(W, R, K, prior, self, progress)
 
 
 # --------------------------------------------------------------------------------------
@@ -236,42 +184,6 @@ def _singular_values(A):
 # --------------------------------------------------------------------------------------
 # solver
 # --------------------------------------------------------------------------------------
-
-def solve_bilinear(W, R, K, prior, settings=BilinearSettings(), progress=None, start=None):
-    """Minimise (*) (module docstring) to a stationary point by variable projection.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements, any units.
-    R : (F, 3, 3) or (F, 2, 3) ndarray
-    K : int
-        Number of shape bases.
-    prior : {"organic", "weighted", "nuclear"}
-        Weights ``a``, see :func:`bilinear_weights`.
-    settings : BilinearSettings
-    progress : callable(str) or None
-    start : ShapeResult, optional
-        This solver's result on the same W (same rank rule and first rank) with nearby
-        cameras: the fit starts from its factors at its final rank (ValueError for any
-        other start).
-
-    Returns
-    -------
-    ShapeResult
-    """
-    if settings.init != "best" or start is not None:
-        return _bilinear(W, R, K, prior, settings, progress, start)
-    first = _bilinear(W, R, K, prior, replace(settings, init="closed_form"), progress)
-    with warnings.catch_warnings():          # the first solve has said it
-        warnings.filterwarnings("ignore", message="W-shape-not-unique")
-        second = _bilinear(W, R, K, prior, replace(settings, init="admm"), progress)
-    best = second if second.objective < first.objective else first
-    best.params.update(init="best", init_kept=best.params["init"],
-                       objectives_of_starts=dict(closed_form=first.objective,
-                                                 admm=second.objective))
-    return best
-
 
 class _Objective:
     """E(B, C) of (*) on normalised W (``||W||_F = 1``), with its iteration record ``hist``
@@ -323,7 +235,7 @@ def _balance_mu(sw, Wn_shape, F, P, K, r, Uw, Rf, st, scale, sigma_1):
             warnings.warn(message, RuntimeWarning, stacklevel=5)
             if st.mu is None:
                 mu_n = max(mu_n, st.min_mu)
-    return mu_n, noise, (B0 if st.init == "closed_form" else None), gap
+    return mu_n, noise, B0, gap
 
 
 def prior_rank(sw, K, F, P):
@@ -342,9 +254,28 @@ def prior_rank(sw, K, F, P):
     return min(3 * K, F, 3 * P), "prior"
 
 
-def _bilinear(W, R, K, prior, st, progress, start=None):
-    """Set-up, the rank rule, L-BFGS (:func:`.factors.minimise`) at each rank, and the result in
-    W's units."""
+def solve_bilinear(W, R, K, prior="organic", settings=None, progress=None):
+    """Minimise (*) (module docstring) to a stationary point by variable projection: the
+    set-up, the rank rule, L-BFGS (:func:`.factors.minimise`) at each rank.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Row-centred measurements, any units.
+    R : (F, 3, 3) or (F, 2, 3) ndarray
+    K : int
+        Number of shape bases.
+    prior : {"organic", "weighted", "nuclear"}
+        Weights ``a``, see :func:`bilinear_weights`.
+    settings : BilinearSettings, optional
+    progress : callable(str) or None
+
+    Returns
+    -------
+    ShapeResult
+        In W's units.
+    """
+    st = BilinearSettings() if settings is None else settings
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     check_prior(prior)
     scale = float(np.linalg.norm(W))
@@ -363,12 +294,6 @@ def _bilinear(W, R, K, prior, st, progress, start=None):
     Xi3 = Rf.transpose(0, 2, 1) @ Wn.reshape(F, 2, P)
     sigma = _singular_values(Xi3.reshape(F, 3 * P))
     cache, prune = {"hist": {"cost": [], "data_term": [], "grad_norm": []}}, why == "prior"
-    if start is None and st.init in ("rank_k", "admm"):       # the start's singular vectors
-        X0 = (Xi3.reshape(F, 3 * P) if st.init == "rank_k" else
-              solve_admm(W, R, K, prior, AdmmSettings()).shapes.reshape(F, 3 * P) / scale)
-        cache["U"], cache["s"] = np.linalg.svd(X0, full_matrices=False)[:2]
-    if start is not None:                   # its factors, at its final rank
-        cache["warm"], r = _warm_factors(start, Wn, r, why)
     ranks, n_total = [], 0
     for _ in range(MAX_RANK_STEPS):
         fit = _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prune)
@@ -394,7 +319,7 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
 
     With ``prune``, columns that die are dropped (:func:`.factors.minimise`) and the result
     carries the rank certificate of the first dropped weight (:func:`rank_certificate`).
-    ``cache`` holds the SVD of X_init# across calls, a warm start (used once) and the
+    ``cache`` holds the start's SVD across calls, the next rank's start (used once) and the
     iteration record."""
     F, P = Xi3.shape[0], Xi3.shape[2]
     Xi = Xi3.reshape(F, 3 * P)
@@ -430,33 +355,16 @@ def _fit_at_rank(Wn, Rf, Xi3, sigma, Uw, sw, K, r, prior, st, scale, cache, prun
                 live=live, certificate=cert, wanted=wanted)
 
 
-def _warm_factors(start, Wn, r, why):
-    """(B of ``start`` in normalised units, its final rank); ValueError unless it is a
-    bilinear result on a W of the same size with the same rank rule and first rank."""
-    p = getattr(start, "params", None) or {}
-    B = getattr(start, "B", None)
-    if getattr(start, "solver", None) != "bilinear" or B is None or \
-            B.shape[0] != Wn.shape[0] // 2 or p.get("rank_rule") != why or \
-            list(p.get("ranks", ()))[:1] != [r]:
-        raise ValueError("start must be a bilinear shape result on the same W (same rank "
-                         f"rule {why!r} and first rank {r}); got {type(start).__name__}")
-    return np.asarray(B, float) / math.sqrt(float(p["normalisation"])), int(p["rank"])
-
-
 #: ridge added to every weight of (*) (normalised units, ||W||_F = 1; a nuclear norm of
 #: 1e-12): where W has fewer independent directions than the fit has unknowns (shark's
-#: noise-free W of rank 5 at r = 3), the data leave X# free along some directions, and
-#: the organic prior's first weight (0) does not bound them. Without it the C step was
-#: singular to rounding, E jittered by 1e-11 between evaluations, and the first column grew
-#: along those directions wherever the solver happened to go (shark through the pipeline:
-#: 1827 iterations; W x 3 gave another answer, e3d .0105 against .0162); with it the answer
-#: is the one of least norm there (59 iterations at every scale). It moves exact answers by
-#: about 1e-12 (docs/shape_stage.md)
+#: noise-free W of rank 5 at r = 3), the data leave X# free along some directions that the
+#: organic prior's first weight (0) does not bound; with the ridge the answer is the one of
+#: least norm there, the same at every scale of W. It moves exact answers by about 1e-12
 RIDGE = 1e-12
 
 #: the start's share of the in-plane residual of the rank-K fit (:func:`_start`): it only
 #: orients the columns beyond K (1e-4, 1e-3, 1e-2 reach the same minima in the same
-#: iterations to within 10 %, docs/shape_stage.md)
+#: iterations to within 10 %)
 START_RESIDUAL = 1e-3
 
 
@@ -464,12 +372,7 @@ def _start(Xi, r, cache, Wn, Rf, Uw, sw, K):
     """B0 (F, r) for r > K: the leading left singular vectors of the closed-form rank-K fit
     X_K plus ``START_RESIDUAL`` of its in-plane residual (``X_K + e (X_init - Pi X_K)``:
     the exact rank-K answer, with the directions the fit leaves for the columns beyond K).
-    Against ``X_init + (I - Pi) X_K`` (the image-plane part of W with the rank-K depth, the
-    start before) on the 8 MoCap sequences and the noisy rows of the shape table: the same
-    minima except stretch at sigma .05 (seed 0), where it reaches a lower one, and 1408 ->
-    1395 iterations in all with the pipeline's rotations (pickup 161 -> 122, drink 390 ->
-    454; ``docs/shape_stage.md``). Its SVD is cached across ranks; with ``init`` ``rank_k``
-    or ``admm`` the cache holds that start's instead (:func:`_bilinear`)."""
+    Its SVD is cached across ranks."""
     if "U" not in cache:
         B, _ = nullspace_coefficients(Uw, sw, Rf, K)
         X_K = B @ c_step(B, Rf, Wn, np.zeros(K)).T
@@ -485,7 +388,7 @@ def _result(fit, Xi3, sigma, F, P, K, prior, st, scale):
     noise_rel = fit["noise"] * math.sqrt(2 * F * P)
     params = dict(prior=prior, K=K, rank=fit["r"], ranks=fit["ranks"],
                   rank_rule=fit["rank_rule"], mu_factor=st.mu_factor, mu_noise=st.mu_noise,
-                  noise_rel=noise_rel, min_mu=st.min_mu, init=st.init, gtol=st.gtol,
+                  noise_rel=noise_rel, min_mu=st.min_mu, gtol=st.gtol,
                   max_iter=int(st.max_iter), normalisation=scale,
                   nullspace_gap=fit["gap"], live_rank=fit["live"],
                   rank_certificate=fit["certificate"])

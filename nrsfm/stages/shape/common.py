@@ -12,10 +12,20 @@ from typing import Optional
 
 import numpy as np
 
-from ...validation import check_K, check_measurements, check_rotations
+from ...validation import check_choice, check_K, check_measurements, check_rotations
 
-__all__ = ["ShapeResult", "check_shape_inputs", "phi", "phi_inv", "pseudo_inverse_shapes",
-           "truncate_rank"]
+__all__ = ["PRIORS", "ShapeResult", "check_prior", "check_shape_inputs", "phi", "phi_inv",
+           "pseudo_inverse_shapes", "truncate_rank"]
+
+#: Shape priors: prior -> N, the leading singular values left unpenalised. ``organic``:
+#: the partial sum of the weighted singular values (paper Eq. 10, N = 1); ``weighted``:
+#: every singular value weighted (Eq. 8); ``nuclear``: the plain nuclear norm (Eq. 7).
+PRIORS = {"organic": 1, "weighted": 0, "nuclear": 0}
+
+
+def check_prior(prior):
+    """``prior`` if it is one of :data:`PRIORS`; ValueError naming the choices otherwise."""
+    return check_choice("shape prior", prior, PRIORS)
 
 
 def phi(X):
@@ -95,20 +105,15 @@ class ShapeResult:
         The solver's objective at the end.
     optimality : float
         The solver's measure of optimality at the end: the ADMM's residual
-        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm, the constrained
-        solver's relative ADMM gap (its KKT certificate is in ``params["kkt"]``); 0 for the
-        closed-form solutions. ``optimality_kind`` names it.
+        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm; 0 for the
+        pseudo-inverse. ``optimality_kind`` names it.
     optimality_kind : str
-        ``"gradient"`` where :attr:`optimality` is a relative gradient norm (then also
-        :attr:`grad_norm`), else a short name of the solver's measure.
+        ``"gradient"``, ``"residual"`` or ``"exact"``.
     params : dict
-        Every constant used, and solver-specific results (the constrained solver's ``eps``,
-        ``residual``, ``chosen``, ``certified``, ``kkt``).
+        Every constant the solver used.
     weights, mu, noise, B, C, wnn_objective : optional
         The bilinear solver's dimensionless weights ``a``, balance ``mu`` and the noise
-        level it came from, its factors and its weighted-nuclear-norm objective (the
-        constrained solver: its weights, the inverse KKT multiplier, the noise level
-        eps / sqrt(2FP) and the weighted norm at its feasible end point).
+        level it came from, its factors and its weighted-nuclear-norm objective.
     """
 
     shapes: np.ndarray
@@ -131,19 +136,6 @@ class ShapeResult:
     B: Optional[np.ndarray] = None
     C: Optional[np.ndarray] = None
     wnn_objective: Optional[float] = None
-
-    @property
-    def prior_objective(self):
-        """The shape prior's objective at this result (None if it has none): ``1/2 ||W -
-        R X||^2 + sum_i theta_i sigma_i(X#)`` (Eq. 10 with the weighted nuclear norm) for
-        the bilinear solver, the last ``cost`` of the history otherwise; what the choice
-        between rotation candidates compares (:mod:`nrsfm.stages.selection`)."""
-        value = self.wnn_objective
-        if value is None:
-            history = self.history or {}
-            cost = history.get("cost") if isinstance(history, dict) else None
-            value = None if cost is None or len(cost) == 0 else cost[-1]
-        return None if value is None or not np.isfinite(value) else float(value)
 
     @property
     def grad_norm(self):

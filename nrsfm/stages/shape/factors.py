@@ -1,4 +1,4 @@
-"""Kernels of the factored shape objective, shared by the bilinear and constrained solvers.
+"""Kernels of the factored shape objective of the bilinear solver.
 
 With ``X# = B C'`` (B: F x r, C: 3P x r) and orthonormal camera rows ``R_f`` (2 x 3),
 
@@ -30,7 +30,7 @@ __all__ = ["SEGMENT", "c_step", "c_step_xi", "reduced_objective", "viewing_direc
 
 #: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
 #: iterations (measured on pickup: 2120 iterations to a relative gradient of 1e-9 without
-#: the alignment, 314 / 189 / 191 with it every 30 / 10 / 5; docs/shape_stage.md)
+#: the alignment, 314 / 189 / 191 with it every 30 / 10 / 5)
 SEGMENT = 10
 
 
@@ -477,7 +477,7 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
 #: curvature pairs kept by L-BFGS (as many as the iterations between alignments: with the
 #: pipeline's rotations, 5 / 10 / 20 / 40 pairs take drink 0.70 / 0.76 / 0.83 / 0.93 s,
 #: pickup 0.21 / 0.22 / 0.23 / 0.25 s, shark 162 / 112 / 121 / 192 iterations;
-#: docs/shape_stage.md)
+#: measured)
 MEMORY = 10
 
 
