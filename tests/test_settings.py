@@ -126,7 +126,7 @@ def test_both_solvers_return_the_one_result_type(seq):
         res = solve_shape(seq.W, seq.rotations, 2, "organic", cls())
         assert isinstance(res, ShapeResult) and res.solver == name
         assert res.shapes.shape == seq.shapes.shape and np.isfinite(res.objective)
-    with pytest.raises(ValueError, match="BilinearSettings or an AdmmSettings"):
+    with pytest.raises(ValueError, match="BilinearSettings or AdmmSettings"):
         solve_shape(seq.W, seq.rotations, 2, "organic", dict(mu=1.0))
     with pytest.raises(ValueError, match="shape prior"):
         solve_shape(seq.W, seq.rotations, 2, "bogus")

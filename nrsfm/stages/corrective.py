@@ -4,19 +4,11 @@ Every valid triplet G satisfies, for each frame f with 2 x 3K block ``M_f`` (row
 ``m_1 Q m_1' = m_2 Q m_2'`` and ``m_1 Q m_2' = 0`` with ``Q = G G'`` of rank 3
 (``M_f G = c_f R_f[:2]``, an orthographic camera times a scalar).
 
-Stages, each a function named by what it maps:
-
-* :func:`~nrsfm.stages.relaxation.constraint_matrix`: M_hat (2F, 3K) -> A (2F, n(n+1)/2)
-  acting on vech(Q), n = 3K (:mod:`nrsfm.stages.relaxation`).
-* :func:`~nrsfm.stages.relaxation.penalized_gram`: M_hat -> Q, a PSD relaxation (trace plus
-  a penalty on Dai's constraint residual, mean squared camera scale fixed to 1).
-* :func:`~nrsfm.stages.relaxation.triplets_from_gram`: Q -> G from the top-3 eigenpairs.
-* :func:`refine_triplet`: G -> G minimising Dai's cost
-  ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2`` (r1, r2 the rows of M_f G)
-  by Levenberg-Marquardt on the 2F residuals with the analytic Jacobian.
-* :func:`search_triplet`: multistart over the relaxations and seeded random starts,
-  stopped once the lowest cost has been reached by two starts.
-* :func:`corrective_triplets`: the search, as the rotation stage runs it.
+The search (:func:`search_triplet`) starts from a convex relaxation of those constraints
+(:mod:`nrsfm.stages.relaxation`) and from seeded random triplets, refines each by
+Levenberg-Marquardt on Dai's cost ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2``
+(r1, r2 the rows of ``M_f G``; :func:`refine_triplet`), and stops once the lowest cost has
+been reached by two starts.
 
 Why these starts and this rule: ``docs/studies/rotations.md``.
 """
@@ -31,9 +23,8 @@ from scipy.linalg import lapack
 
 from .relaxation import penalized_gram, triplets_from_gram
 
-__all__ = ["SEARCH_LAMBDAS", "SEARCH_SDP_TOL", "TripletSearch", "corrective_triplets",
-           "refine_triplet", "search_triplet", "triplet_cost", "triplet_gradient",
-           "triplet_residuals"]
+__all__ = ["TripletSearch", "corrective_triplets", "refine_triplet", "search_triplet",
+           "triplet_cost", "triplet_residuals"]
 
 
 # ------------------------------------------------------------------------- refinement
@@ -318,18 +309,13 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
                    rtol=1e-5, max_iter=200):
     """Multistart minimisation of Dai's cost with a stopping rule.
 
-    Starts, in a fixed order: the top-3 eigenpairs of :func:`penalized_gram` for each
-    penalty in ``lams``, then Gaussian starts drawn from ``numpy.random.default_rng(seed)``.
-    Each start is refined on all frames (:func:`refine_triplet`, at most ``max_iter``
-    iterations). The search stops as soon as the lowest cost found so far has been reached
-    by ``hits`` starts (costs equal to relative ``rtol``: the same minimum), or after
-    ``max_starts`` starts.
-
-    Why this rule: a basin reached by ``h`` of ``n`` independent random starts has an
-    estimated attraction probability ``h / n``; a better basin never reached in ``n``
-    starts has, with 95% confidence, attraction probability below ``3 / n`` (rule of
-    three). Requiring two hits of the best minimum means that minimum was found again by a
-    start that did not know it.
+    Starts, in a fixed order: the relaxation (:func:`penalized_gram`) at each penalty in
+    ``lams``, then Gaussian starts from ``numpy.random.default_rng(seed)``, each refined on
+    all frames. Stops once the lowest cost so far has been reached by ``hits`` starts (equal
+    to relative ``rtol``: the same minimum) or after ``max_starts``. A better basin never
+    reached by n random starts has attraction probability below 3 / n with 95 % confidence
+    (rule of three); two hits mean the best minimum was found again by a start that did not
+    know it.
 
     Parameters
     ----------

@@ -1,19 +1,12 @@
 """Measurement stage (paper Sec. 2, Eq. 1): centring, scale and the rank-3K factorisation.
 
 :func:`measure` maps the (complete) input W to :class:`Measurements`: the row-centred W,
-its normalisation ``Wn = W_c / scale`` with ``||Wn||_F = WORKING_FROBENIUS`` (the later
-stages run on Wn, so their result does not depend on the input's units) and the rank-3K
-SVD of Wn. :meth:`Measurements.restore` brings shapes of Wn back to the input's units.
+``Wn = W_c / scale`` with ``||Wn||_F = WORKING_FROBENIUS`` (the later stages run on Wn, so
+their result does not depend on the input's units) and the rank-3K SVD of Wn.
 
-Why a fixed norm, and why 170: the rotation and shape stages are scale-free in exact
-arithmetic, but not in their paths. The triplet relaxation's ADMM has a fixed penalty and
-absolute tolerances, so its start for the refinement moves with the scale of M_hat (e_R
-changes by about 1e-7, relative, between ``||Wn||_F`` = 1 and 170 on the MoCap sequences),
-and the bilinear shape solver's L-BFGS then stops elsewhere at its gradient tolerance
-(measured: pickup e3d 0.015454 at 170, 0.015414 at 1; drink 0.010479, 0.010355). 170 is
-the norm every published figure of this code was computed at; it is kept so that they stay
-the same, and it is not the ADMM's constant (the ADMM scales W itself, see
-:mod:`nrsfm.stages.shape.admm`).
+Why a fixed norm: the stages are scale-free in exact arithmetic but not in their paths (the
+relaxation's ADMM has absolute tolerances, L-BFGS stops at a gradient tolerance); 170 is
+also the norm the paper's ADMM constants are tuned at (:mod:`nrsfm.stages.shape.admm`).
 """
 
 from __future__ import annotations
@@ -24,8 +17,8 @@ import numpy as np
 
 from ..noise import noise_from_singular_values
 
-__all__ = ["Factorization", "Measurements", "centre_rows", "factorize", "left_singular", "measure",
-           "power_of_two_scale", "weighted_svt", "working_scale"]
+__all__ = ["Factorization", "Measurements", "factorize", "measure", "power_of_two_scale",
+           "weighted_svt"]
 
 #: Frobenius norm of the W the stages work on (see the module docstring)
 WORKING_FROBENIUS = 170.0

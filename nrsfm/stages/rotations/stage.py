@@ -12,8 +12,8 @@ import numpy as np
 from ...geometry import average_rotations
 from ...validation import check_fraction, check_integer, check_positive
 from ..corrective import TripletSearch, corrective_triplets, refine_triplet, triplet_cost
-from .lifting import (filter_rotations, register_rotations, resolve_depth_signs,
-                      rotations_from_triplets)
+from .lifting import filter_rotations, register_rotations, resolve_depth_signs
+from .lifting import rotations_from_triplets
 from .subspace import determined_subspace, effective_K, lift_triplets
 
 __all__ = ["MIN_WINDOW_FRAMES", "RotationResult", "RotationSettings", "WINDOW_LM",

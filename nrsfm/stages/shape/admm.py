@@ -1,26 +1,16 @@
 """The paper's continuation ADMM for the shape stage (paper Sec. 3.2, ``solver="admm"``).
 
-The paper's problem (Eq. 8, 10) is
-
     minimise_{X, X#}  1/2 ||W - R X||_F^2 + mu ||X#||_{r=N, theta}   s.t.  X# = Phi(X)
 
-with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)``, solved by ADMM (Eq. 11-14)
-with the partial singular value thresholding (PSVT) operator of Oh et al. for the X# step
-(:func:`admm_iterations`). Three priors share the machinery:
-
-``organic``  (the paper): N = 1, theta_i = xi / (sigma_i(X_init#) + gamma) (Eq. 9).
-``weighted`` (R-BMM-style baseline): N = 0, the same weights on every singular value.
-``nuclear``  (BMM's shape model): N = 0, one weight ``c = sum_i theta_i sigma_i /
-             sum_i sigma_i`` for every singular value (X_init pays the same penalty).
+with ``||A||_{r=N, theta} = sum_{i > N} theta_i sigma_i(A)`` (Eq. 8, 10), by ADMM (Eq. 11-14)
+with partial singular value thresholding (PSVT, Oh et al.) for the X# step. The priors:
+``organic`` N = 1, ``theta_i = xi / (sigma_i(X_init#) + gamma)`` (Eq. 9); ``weighted`` N = 0,
+the same weights; ``nuclear`` N = 0, one weight ``sum_i theta_i sigma_i / sum_i sigma_i``.
 
 The ADMM is a continuation (rho grows 10 % per iteration): its answer is where the path
-freezes, not a minimiser of Eq. (10). Its thresholds are absolute (``xi = 5e-3
-sqrt(sigma_1(X_init#))``, ``rho0 = 1e-4``, ``theta_i = xi / sigma_i``), so its result depends
-on the units of W: :func:`solve_admm`, the stage's entry, runs it on ``W / s`` with
-``s = ||W||_F / TARGET_FROBENIUS`` and multiplies the shapes by ``s``. The rule uses W alone
-and is homogeneous of degree one, so the stage is exactly scale invariant; but 170 is a
-setting of this solver, chosen on the eight MoCap sequences (other targets give different
-answers, ``docs/studies/shape.md``). The bilinear solver is scale-free.
+freezes. Its thresholds are absolute, so :func:`solve_admm` runs it on ``W / s``,
+``s = ||W||_F / TARGET_FROBENIUS``, and scales the shapes back: exactly scale invariant,
+with 170 a setting of this solver.
 """
 
 from __future__ import annotations
@@ -32,15 +22,14 @@ from typing import ClassVar, Optional
 import numpy as np
 
 from ...validation import check_integer, check_positive
-from ..measurement import weighted_svt
-from .common import PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv, \
-    truncate_rank
+from ..measurement import WORKING_FROBENIUS, weighted_svt
+from .common import PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv
+from .common import truncate_rank
 
-__all__ = ["AdmmSettings", "TARGET_FROBENIUS", "admm_iterations", "normalization_scale",
-           "psvt", "shape_weights", "solve_admm"]
+__all__ = ["AdmmSettings", "admm_iterations", "psvt", "shape_weights", "solve_admm"]
 
-#: Frobenius norm of the W the ADMM's constants are tuned for (its setting).
-TARGET_FROBENIUS = 170.0
+#: Frobenius norm of the W the ADMM's constants are tuned for: the working norm
+TARGET_FROBENIUS = WORKING_FROBENIUS
 #: ``xi = XI_FACTOR sqrt(sigma_1(X_init#))`` (paper Sec. 4, implementation details)
 XI_FACTOR = 5e-3
 #: a progress line every this many iterations
@@ -65,8 +54,7 @@ class AdmmSettings:
     xi, gamma : float
         Eq. (9); ``xi`` defaults to ``5e-3 sqrt(sigma_1(X_init#))``.
     max_iter : int
-        Safety cap on iterations (the rho schedule alone stops after
-        ``ceil(log(rho_max / rho0) / log(lam))`` iterations, 339 with the defaults).
+        Cap on iterations (the rho schedule stops after 339 with the defaults).
 
     Raises
     ------
@@ -108,96 +96,56 @@ def normalization_scale(W):
     Raises
     ------
     ValueError
-        W not 2-D, non-finite, or zero.
+        W not 2-D, not finite, or zero (nothing to reconstruct).
     """
     W = np.asarray(W, dtype=float)
-    if W.ndim != 2:
-        raise ValueError(f"W must be a 2-D (2F, P) matrix; got shape {W.shape}")
-    if not np.all(np.isfinite(W)):
-        raise ValueError("W contains NaN or infinite entries")
-    norm = float(np.linalg.norm(W))
-    if not norm > 0:
-        raise ValueError("W is constant (every row has zero spread, W is zero after centring): "
-                         "nothing to reconstruct")
+    norm = float(np.linalg.norm(W)) if W.ndim == 2 else float("nan")
+    if not 0 < norm < np.inf:
+        raise ValueError(f"W must be a finite, non-zero (2F, P) matrix; got shape {W.shape}, "
+                         f"norm {norm:g}")
     return norm / TARGET_FROBENIUS
 
 
-# --------------------------------------------------------------------------------------
-# PSVT and weights
-# --------------------------------------------------------------------------------------
-
 def psvt(Q, N, tau, return_singular_values=False):
-    """Partial singular value thresholding ``P_{N, tau}[Q]`` (Oh et al.; paper's theorem).
+    """Partial singular value thresholding ``P_{N, tau}[Q]`` (Oh et al.; paper Eq. 16-17).
 
-    Solves ``argmin_P  ||P||_{r=N, tau} + 1/2 ||P - Q||_F^2`` where
-    ``||P||_{r=N, tau} = sum_{i > N} tau_i sigma_i(P)``: the leading N singular values of Q
-    are kept, the others soft-thresholded, ``sigma_i -> max(sigma_i - tau_i, 0)``. For a
-    scalar tau this is Oh et al.'s theorem; for per-value thresholds that do not decrease
-    with i (as Eq. 9 gives: smaller sigma, larger theta) it is still the exact proximal
-    operator of the weighted partial sum (the weighted-SVT result of Gu et al., CVPR 2014).
+    ``argmin_P sum_{i > N} tau_i sigma_i(P) + 1/2 ||P - Q||_F^2``: the leading N singular
+    values of Q are kept, the others ``sigma_i -> max(sigma_i - tau_i, 0)``. Exact also for
+    per-value thresholds that do not decrease with i, as Eq. 9 gives (Gu et al., CVPR 2014).
 
     Parameters
     ----------
     Q : (m, n) array_like
     N : int
-        Number of leading singular values left untouched, ``0 <= N``.
+        Leading singular values left untouched, ``N >= 0``.
     tau : float or (min(m, n),) array_like
-        Threshold, a scalar or one per singular value (entries for i < N are ignored).
-        Must be non-negative.
+        Non-negative threshold(s); entries for i < N are ignored.
     return_singular_values : bool
-        Also return the thresholded singular values.
+        Also return the singular values of P.
 
     Returns
     -------
-    P : (m, n) ndarray
-    s : (min(m, n),) ndarray
-        Only if ``return_singular_values``: the singular values of P (in Q's order).
+    P : (m, n) ndarray, and s : (min(m, n),) ndarray if ``return_singular_values``
 
     Raises
     ------
     ValueError
-        Q not 2-D or not finite, N negative or not an integer, tau negative, non-finite or
-        of the wrong length.
+        Q not a finite 2-D matrix, N not a non-negative integer, tau negative, non-finite
+        or of the wrong length.
     """
     Q = np.asarray(Q, dtype=float)
-    if Q.ndim != 2:
-        raise ValueError(f"Q must be a 2-D matrix; got shape {Q.shape}")
-    if not np.all(np.isfinite(Q)):
-        raise ValueError("Q contains NaN or infinite entries")
+    if Q.ndim != 2 or not np.all(np.isfinite(Q)):
+        raise ValueError(f"Q must be a finite 2-D matrix; got shape {Q.shape}")
+    N = check_integer(N, "N", minimum=0)
     r = min(Q.shape)
-    N = _check_N(N)
-    tau = _check_tau(tau, r)
+    tau = np.asarray(tau, dtype=float)
+    if tau.shape not in ((), (r,)) or not np.all(np.isfinite(tau)) or np.any(tau < 0):
+        raise ValueError(f"tau must be non-negative, a scalar or {r} values; got {tau!r}")
     U, s, Vt = np.linalg.svd(Q, full_matrices=False)
-    s_new = _threshold(s, N, tau)
+    s_new = np.maximum(s - tau, 0.0)
+    s_new[:N] = s[:N]
     P = (U * s_new) @ Vt
     return (P, s_new) if return_singular_values else P
-
-
-def _threshold(s, N, tau):
-    """Keep s[:N], soft-threshold s[N:] by tau (scalar or per value)."""
-    out = np.maximum(s - tau, 0.0)
-    out[:N] = s[:N]
-    return out
-
-
-def _check_N(N):
-    if isinstance(N, bool) or not isinstance(N, (int, np.integer)):
-        raise ValueError(f"N must be a non-negative integer; got {N!r}")
-    if N < 0:
-        raise ValueError(f"N must be a non-negative integer; got {N}")
-    return int(N)
-
-
-def _check_tau(tau, r):
-    tau = np.asarray(tau, dtype=float)
-    if tau.ndim == 0:
-        tau = np.full(r, float(tau))
-    elif tau.shape != (r,):
-        raise ValueError(f"tau must be a scalar or have {r} entries (one per singular value);"
-                         f" got shape {tau.shape}")
-    if not np.all(np.isfinite(tau)) or np.any(tau < 0):
-        raise ValueError("tau must be finite and non-negative")
-    return tau
 
 
 def shape_weights(sigma, xi=None, gamma=1e-6):
@@ -236,10 +184,6 @@ def shape_weights(sigma, xi=None, gamma=1e-6):
     return xi / (sigma + gamma)
 
 
-# --------------------------------------------------------------------------------------
-# ADMM (Eq. 10-14)
-# --------------------------------------------------------------------------------------
-
 def admm_iterations(W, R, K, prior, settings, progress=None):
     """Low-rank shape by ADMM on Eq. (10) with the PSVT X# step (paper Sec. 3.2).
 
@@ -270,19 +214,12 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
 
     Notes
     -----
-    One iteration t (Eq. 11-14), with ``Z = Phi^-1(X# + Y / rho)``:
-
-    * X step, per frame in closed form (Eq. 13):
-      ``X_f = (R_f'R_f + rho I)^-1 (R_f'W_f + rho Z_f)``. For orthonormal rows,
-      ``R_f'R_f`` is the projector onto the image plane, and the inverse reduces to
-      ``X_f = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)`` (vectorised over frames).
-    * X# step (Eq. 14 and the PSVT operator, Eq. 16-17):
-      ``X# = P_{N, mu theta / rho}[Phi(X) - Y / rho]``.
-    * ``Y += rho (X# - Phi(X))``; ``rho = min(rho_max, lam rho)``.
-    * Stop when ``max |X# - Phi(X)| < eps`` or ``rho >= rho_max``.
-
-    ``X = X#`` start at the rank-K truncation of X_init, ``Y`` at zero. The iterate returned
-    is X, the data-step variable.
+    One iteration (Eq. 11-14), with ``Z = Phi^-1(X# + Y / rho)``: the X step per frame,
+    ``X_f = (R_f'R_f + rho I)^-1 (R_f'W_f + rho Z_f) = Z_f + R_f'(W_f - R_f Z_f) / (1 + rho)``
+    (orthonormal rows, Eq. 13); the X# step ``X# = P_{N, mu theta / rho}[Phi(X) - Y / rho]``
+    (Eq. 14, 16-17); ``Y += rho (X# - Phi(X))``, ``rho = min(rho_max, lam rho)``; stop when
+    ``max |X# - Phi(X)| < eps`` or ``rho >= rho_max``. ``X = X#`` start at the rank-K
+    truncation of X_init, Y at zero; the iterate returned is X.
     """
     check_prior(prior)
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
@@ -293,16 +230,36 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
     X_init = Rf.transpose(0, 2, 1) @ Wf             # pinv(R_f) = R_f' for orthonormal rows
     sigma = np.linalg.svd(phi(X_init), compute_uv=False)
     theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
-    X, hist, n_iter, converged = _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say)
-    resid = hist["residual"][-1]
+    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
+    Xs = phi(truncate_rank(X_init, K)).copy()
+    Y, rho, n_iter, converged = np.zeros_like(Xs), st.rho0, 0, False
+    hist = {k: [] for k in ("cost", "data_term", "residual", "rho")}
+    for n_iter in range(1, st.max_iter + 1):
+        Z = phi_inv(Xs + Y / rho, P)                # X step (Eq. 13), closed form per frame
+        X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
+        # X# step (Eq. 14, 17): PSVT with tau_i = mu theta_i / rho, the first N zero
+        Xs, s_new = weighted_svt(phi(X) - Y / rho, reg_w / rho)
+        D = Xs - phi(X)                             # multiplier and penalty updates
+        Y += rho * D
+        resid = float(np.abs(D).max())
+        data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
+        for key, value in zip(hist, (data + float(reg_w @ s_new), data, resid, rho)):
+            hist[key].append(value)
+        rho = min(st.rho_max, st.lam * rho)
+        if n_iter % PROGRESS_EVERY == 0:
+            say(f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
+                f"residual {resid:.3g}, rho {rho:.3g}")
+        converged = resid < st.eps
+        if converged or rho >= st.rho_max:
+            break
+    hist = {k: np.asarray(v) for k, v in hist.items()}
     say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
         f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
         f"cost {hist['cost'][-1]:.6g}")
-    params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
-    return ShapeResult(shapes=X, X_init=X_init, X_init_singular_values=sigma,
-                       theta=theta, N=N, prior=prior, solver="admm", history=hist,
-                       n_iter=n_iter, converged=converged, objective=hist["cost"][-1],
-                       optimality=resid, optimality_kind="residual", params=params)
+    result = ShapeResult(X, X_init, sigma, theta, N, prior, "admm", hist, n_iter, converged)
+    result.objective, result.optimality = hist["cost"][-1], resid
+    result.params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
+    return result
 
 
 def solve_admm(W, R, K, prior="organic", settings=None, progress=None):
@@ -332,45 +289,3 @@ def _admm_weights(sigma, prior, N, settings):
     reg_w = settings.mu * theta.copy()
     reg_w[:N] = 0.0                                 # partial sum: first N free (Eq. 10)
     return theta, reg_w, xi
-
-
-def _iterate(Wf, Rf, X_init, K, N, reg_w, st, prior, say):
-    """The ADMM iterations (Eq. 11-14, Notes of :func:`admm_iterations`).
-
-    Returns (X, history of arrays, iterations, converged)."""
-    F, _, P = Wf.shape
-    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
-    X = truncate_rank(X_init, K)
-    Xs = phi(X).copy()
-    Y = np.zeros_like(Xs)
-    rho = st.rho0
-    hist = {k: [] for k in ("cost", "data_term", "residual", "rho")}
-    converged = False
-    n_iter = 0
-    for n_iter in range(1, st.max_iter + 1):
-        # X step (Eq. 13), closed form per frame, vectorised.
-        Z = phi_inv(Xs + Y / rho, P)
-        X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
-        # X# step (Eq. 14, 17): PSVT of Phi(X) - Y / rho with tau_i = mu theta_i / rho (the
-        # first N zero, the rest non-decreasing: weighted SVT from the shorter side's Gram
-        # matrix, 2.5 x faster than an SVD at pickup's size)
-        Xs, s_new = weighted_svt(phi(X) - Y / rho, reg_w / rho)
-        # Multiplier and penalty updates.
-        D = Xs - phi(X)
-        Y += rho * D
-        resid = float(np.abs(D).max())
-        data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
-        hist["cost"].append(data + float(reg_w @ s_new))
-        hist["data_term"].append(data)
-        hist["residual"].append(resid)
-        hist["rho"].append(rho)
-        rho = min(st.rho_max, st.lam * rho)
-        if n_iter % PROGRESS_EVERY == 0:
-            say(f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
-                f"residual {resid:.3g}, rho {rho:.3g}")
-        if resid < st.eps:
-            converged = True
-            break
-        if rho >= st.rho_max:
-            break
-    return X, {k: np.asarray(v) for k, v in hist.items()}, n_iter, converged

@@ -1,40 +1,37 @@
-"""The closed-form rank-K solution of ``R X = W`` (the nullspace method of Valmadre,
-Sridharan, Denman, Fookes, Lucey, "Closed-form solutions for low-rank non-rigid
-reconstruction", DICTA 2015), written here from the maths; the start of the bilinear solver
-and the ``closed_form`` shape solver (:class:`nrsfm.stages.shape.bilinear.ClosedFormSettings`).
+"""The closed-form rank-K solution of ``R X = W``: the nullspace method of Valmadre,
+Sridharan, Denman, Fookes and Lucey ("Closed-form solutions for low-rank non-rigid
+reconstruction", DICTA 2015), the bilinear solver's start.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..rotations.subspace import DETERMINED_RTOL
 from .common import check_shape_inputs
 from .factors import c_step
-from ..rotations.subspace import DETERMINED_RTOL
 
-__all__ = ["NULLSPACE_GAP_MIN", "closed_form_coefficients", "closed_form_fit",
-           "closed_form_shapes", "nullspace_coefficients"]
+__all__ = ["closed_form_coefficients", "closed_form_shapes", "nullspace_coefficients"]
 
 #: the rank-K fit counts as unique when the closed form's (K+1)-th eigenvalue exceeds this
 NULLSPACE_GAP_MIN = 1e-12
 
 
 def closed_form_coefficients(W, R, K):
-    """Rank-K shape coefficients B (F, K) by the nullspace method (Valmadre et al. 2015).
+    """Rank-K shape coefficients B (F, K) by the nullspace method.
 
-    With ``W ~ M_hat B_hat`` (rank 3K SVD, ``M_hat`` 2F x 3K), an exact rank-K shape
-    ``X_f = sum_k b_fk S_k`` means ``M_hat_f G_k = b_fk R_f`` for a 3K x 3 triplet
-    ``G_k`` per basis. This is linear and homogeneous in ``(G_k, b_1k .. b_Fk)``; eliminating
+    With ``W ~ M_hat B_hat`` (rank 3K), an exact rank-K shape ``X_f = sum_k b_fk S_k`` means
+    ``M_hat_f G_k = b_fk R_f`` for a 3K x 3 triplet G_k per basis; eliminating
     ``b_fk = <R_f, M_hat_f G_k> / 2`` leaves ``sum_f ||(I - r_f r_f' / 2) vec(M_hat_f G)||^2``,
-    a 9K x 9K quadratic form whose K-dimensional nullspace holds every triplet. Its K
-    smallest eigenvectors give B (up to an invertible K x K mixing, which does not change X).
+    a 9K x 9K quadratic form whose K smallest eigenvectors give B (up to a K x K mixing,
+    which does not change X).
 
     Returns
     -------
     B : (F, K) ndarray
     eigenvalues : (K + 1,) ndarray
-        The K + 1 smallest eigenvalues of the quadratic form (relative to the largest):
-        K near-zero values and a clear gap mean the rank-K solution is determined.
+        The K + 1 smallest eigenvalues of the form relative to the largest: K near zero and
+        a gap mean the rank-K solution is determined.
     """
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
     U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
@@ -50,8 +47,7 @@ def nullspace_coefficients(U, s, Rf, K):
     # vec(M_f G) for G (n, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
     MtM = np.einsum("fai,faj->ij", M, M)
     Q = np.kron(MtM, np.eye(3))
-    # A_f' r_f = vec(M_f' R_f) (n x 3)
-    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 3 * n)
+    v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 3 * n)  # A_f' r_f = vec(M_f' R_f)
     Q -= 0.5 * v.T @ v
     evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
     G = evecs[:, :K]                                          # (3n, K)
@@ -60,50 +56,10 @@ def nullspace_coefficients(U, s, Rf, K):
 
 
 def closed_form_shapes(W, R, K):
-    """Closed-form rank-K shape: coefficients by :func:`closed_form_coefficients`, bases
-    by linear least squares.
-
-    Exact (to rounding) when W is exactly ``R X`` with ``rank X# = K`` and the solution is
-    unique; otherwise a least-squares approximation, used as a starting point.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements.
-    R : (F, 3, 3) or (F, 2, 3) ndarray
-    K : int
-
-    Returns
-    -------
-    X : (F, 3, P) ndarray
-    """
+    """Closed-form rank-K shape (F, 3, P): coefficients by :func:`closed_form_coefficients`,
+    bases by linear least squares. Exact (to rounding) when W is exactly ``R X`` with
+    ``rank X# = K`` and the solution is unique; else a least-squares approximation."""
     W, Rf, F, P, K = check_shape_inputs(W, R, K)
-    return closed_form_fit(W, Rf, K)[0]
-
-
-def closed_form_fit(W, Rf, K):
-    """:func:`closed_form_shapes` on checked inputs, with the nullspace gap.
-
-    Parameters
-    ----------
-    W : (2F, P) ndarray
-        Row-centred measurements, not zero.
-    Rf : (F, 2, 3) ndarray
-        Orthonormal camera rows.
-    K : int
-        Checked number of shape bases (``3K <= min(2F, P)``).
-
-    Returns
-    -------
-    X : (F, 3, P) ndarray
-    gap : float
-        The closed form's (K+1)-th smallest eigenvalue relative to its largest: above
-        :data:`NULLSPACE_GAP_MIN` when the rank-K fit is unique, at rounding level when it
-        is not (then X is one member chosen by rounding).
-    """
-    F, P = W.shape[0] // 2, W.shape[1]
-    U, s, _ = np.linalg.svd(W / np.linalg.norm(W), full_matrices=False)
-    B, ev = nullspace_coefficients(U, s, Rf, K)
+    B, _ = closed_form_coefficients(W, Rf, K)
     B = B / np.linalg.norm(B, axis=0)
-    C = c_step(B, Rf, W, np.zeros(K))
-    return (B @ C.T).reshape(F, 3, P), float(ev[K])
+    return (B @ c_step(B, Rf, W, np.zeros(K)).T).reshape(F, 3, P)

@@ -14,8 +14,7 @@ import numpy as np
 
 from ...validation import check_choice, check_K, check_measurements, check_rotations
 
-__all__ = ["PRIORS", "ShapeResult", "check_prior", "check_shape_inputs", "phi", "phi_inv",
-           "pseudo_inverse_shapes", "truncate_rank"]
+__all__ = ["PRIORS", "ShapeResult", "phi", "phi_inv", "pseudo_inverse_shapes", "truncate_rank"]
 
 #: Shape priors: prior -> N, the leading singular values left unpenalised. ``organic``:
 #: the partial sum of the weighted singular values (paper Eq. 10, N = 1); ``weighted``:
@@ -66,8 +65,7 @@ def truncate_rank(X, K):
 
 
 def check_shape_inputs(W, R, K=None):
-    """W as (2F, P), the first two rows of R as (F, 2, 3), F, P (and K if given: the
-    package's K bound, :func:`nrsfm.validation.check_K`)."""
+    """W as (2F, P), the first two rows of R as (F, 2, 3), F, P (and K if given)."""
     W = check_measurements(W)
     F, P = W.shape[0] // 2, W.shape[1]
     Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
@@ -89,31 +87,23 @@ class ShapeResult:
     X_init_singular_values : (min(F, 3P),) ndarray
         Singular values of ``X_init# = Phi(X_init)``, W's units.
     theta : ndarray or None
-        The weights of the singular values used by the prior (solver's units, see
-        ``params``); the first N are reported but not penalised.
-    N : int
-        Leading singular values left unpenalised.
-    prior : str
-        ``organic``, ``weighted``, ``nuclear`` or ``none``.
-    solver : str
-        The registered solver name.
+        The prior's weights of the singular values (solver's units; the first N are
+        reported but not penalised).
+    N, prior, solver : int, str, str
+        Leading singular values left unpenalised; ``organic``, ``weighted``, ``nuclear`` or
+        ``none``; ``bilinear``, ``admm`` or ``pseudo_inverse``.
     history : dict of ndarrays
         Per iteration (solver-specific keys, always ``cost``).
-    n_iter : int
-    converged : bool
-    objective : float
-        The solver's objective at the end.
+    n_iter, converged, objective : int, bool, float
     optimality : float
-        The solver's measure of optimality at the end: the ADMM's residual
-        ``max |X# - Phi(X)|``, the bilinear solver's relative gradient norm; 0 for the
-        pseudo-inverse. ``optimality_kind`` names it.
-    optimality_kind : str
-        ``"gradient"``, ``"residual"`` or ``"exact"``.
+        The solver's measure of optimality at the end: the bilinear solver's relative
+        gradient norm (:attr:`grad_norm`), the ADMM's residual ``max |X# - Phi(X)|``, 0 for
+        the pseudo-inverse.
     params : dict
-        Every constant the solver used.
-    weights, mu, noise, B, C, wnn_objective : optional
-        The bilinear solver's dimensionless weights ``a``, balance ``mu`` and the noise
-        level it came from, its factors and its weighted-nuclear-norm objective.
+        What the solver computed besides (its rank rule, scale, constants).
+    mu, noise, wnn_objective : float, optional
+        The bilinear solver's balance, the noise level it came from and its weighted
+        nuclear norm objective (Eq. 10 at its answer).
     """
 
     shapes: np.ndarray
@@ -128,17 +118,12 @@ class ShapeResult:
     converged: bool = False
     objective: float = float("nan")
     optimality: float = float("nan")
-    optimality_kind: str = ""
     params: dict = field(default_factory=dict)
-    weights: Optional[np.ndarray] = None
     mu: Optional[float] = None
     noise: Optional[float] = None
-    B: Optional[np.ndarray] = None
-    C: Optional[np.ndarray] = None
     wnn_objective: Optional[float] = None
 
     @property
     def grad_norm(self):
-        """Relative gradient norm (:attr:`optimality` where ``optimality_kind`` is
-        ``"gradient"``); None for the solvers whose optimality is measured otherwise."""
-        return self.optimality if self.optimality_kind == "gradient" else None
+        """The bilinear solver's relative gradient norm (None for the other solvers)."""
+        return self.optimality if self.solver == "bilinear" else None

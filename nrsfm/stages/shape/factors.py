@@ -4,18 +4,10 @@ With ``X# = B C'`` (B: F x r, C: 3P x r) and orthonormal camera rows ``R_f`` (2 
 
     E(B, C) = 1/2 sum_f ||W_f - R_f X_f||_F^2 + 1/2 sum_i reg_i (|B_i|^2 + |C_i|^2).   (*)
 
-This module holds what every step of a solver of (*) needs, written for speed (each is a
-few matrix products; no per-frame Python loop and no per-frame LAPACK call):
-
-* :func:`c_step`: ``argmin_C E`` for fixed B, one 3r x 3r system shared by all points;
-* :func:`objective`: E, its data term and both gradients;
-* :func:`frame_preconditioner`: the per-frame Hessians ``H_f = d^2 E / dB_f^2`` at fixed C,
-  their Cholesky factors and inverse factors (batched, vectorised over frames);
-* :func:`svd_align`: the factorisation of the same X# that minimises the regulariser;
-* :func:`reduced_objective`: ``f(B) = min_C E(B, C)`` (variable projection) and its gradient;
-* :func:`minimise`: L-BFGS on f with the per-frame Hessians as its initial inverse
-  Hessian, from aligned factors re-aligned every few iterations (its memory carried through
-  the change of basis).
+Each kernel is a few matrix products, vectorised over frames: :func:`c_step` (``argmin_C
+E``), :func:`objective`, :func:`reduced_objective` (``f(B) = min_C E``, variable
+projection), :func:`frame_preconditioner` (the per-frame Hessians ``d^2 E / dB_f^2``),
+:func:`svd_align` and :func:`minimise` (L-BFGS on f).
 """
 
 from __future__ import annotations
@@ -25,37 +17,16 @@ import math
 import numpy as np
 import scipy.linalg
 
-__all__ = ["SEGMENT", "c_step", "c_step_xi", "reduced_objective", "viewing_directions", "frame_hessians", "frame_preconditioner", "minimise", "project",
-           "objective", "rank_certificate", "relative_gradient", "svd_align"]
+__all__ = ["c_step", "minimise", "objective", "rank_certificate", "reduced_objective"]
 
 #: L-BFGS restarts from aligned factors with a fresh preconditioner every this many
-#: iterations (measured on pickup: 2120 iterations to a relative gradient of 1e-9 without
-#: the alignment, 314 / 189 / 191 with it every 30 / 10 / 5)
+#: iterations (pickup to a relative gradient of 1e-9: 2120 iterations without, 189 with)
 SEGMENT = 10
 
 
 def c_step(B, Rf, W, reg):
-    """argmin_C E(B, C) of (*): one (3r x 3r) system shared by all points.
-
-    For point p with unknowns ``c_p = [C_i(:, p)]_i`` (3r), the data term is
-    ``sum_f ||W_f[:, p] - (B_f kron R_f) c_p||^2``: with ``A`` the (2F x 3r) matrix of rows
-    ``B_f kron R_f``, the normal matrix is ``A'A + diag(reg kron 1_3)`` and the right-hand
-    sides ``A'W``; :func:`c_step_xi` computes both without forming A.
-
-    Parameters
-    ----------
-    B : (F, r) ndarray
-    Rf : (F, 2, 3) ndarray
-        Orthonormal camera rows.
-    W : (2F, P) ndarray
-        Row-centred measurements.
-    reg : (r,) ndarray
-        Non-negative regulariser weights.
-
-    Returns
-    -------
-    C : (3P, r) ndarray
-    """
+    """argmin_C E(B, C) of (*), (3P, r), for B (F, r), orthonormal camera rows Rf (F, 2, 3),
+    row-centred W (2F, P) and weights reg (r,): one 3r x 3r system shared by all points."""
     F = B.shape[0]
     Xi = np.matmul(Rf.transpose(0, 2, 1), W.reshape(F, 2, -1)).reshape(F, -1)
     return c_step_xi(B, viewing_directions(Rf), Xi, reg)
@@ -67,12 +38,7 @@ def viewing_directions(Rf):
 
 
 def c_step_xi(B, n, Xi, reg):
-    """:func:`c_step` from the viewing directions n (F, 3) and X_init# (F, 3P).
-
-    ``A'A = sum_f (B_f'B_f) kron (I - n_f n_f') = (B'B) kron I_3 - D'D`` with D the (F x 3r)
-    matrix of rows ``B_f kron n_f``, and ``A'W = B' X_init#`` (as (3r, P)): half the work of
-    forming A (2F x 3r) and its products. The unknowns are ordered (coordinate, column)
-    here, so that the per-frame products run over r, not over 3."""
+    """:func:`c_step` from the viewing directions n (F, 3) and X_init# (F, 3P)."""
     F, r = B.shape
     P = Xi.shape[1] // 3
     D = (n[:, :, None] * B[:, None, :]).reshape(F, 3 * r)      # columns (a, i)
@@ -91,13 +57,9 @@ def c_step_xi(B, n, Xi, reg):
 
 
 def reduced_objective(B, n, Pi, Xi, w2, reg):
-    """The reduced objective ``f(B) = min_C E(B, C)`` of (*): (C, (E, data, dE/dB, 0.0)).
-
-    C is :func:`c_step_xi`'s, at which ``dE/dC`` vanishes (returned as 0.0): E and dE/dB
-    are :func:`objective`'s without its dE/dC (a quarter of its products). E is evaluated at
-    that C, not read from the normal equations (``(w2 - <A'W, c>) / 2 + ...`` holds only
-    where they are solved exactly: on shark's noise-free W of rank 5 it went 1e-11 below the
-    true E, and the line search followed rounding)."""
+    """The reduced objective ``f(B) = min_C E(B, C)`` of (*): (C, (E, data, dE/dB, 0.0)),
+    dE/dC vanishing at that C. E is evaluated at C, not read from the normal equations
+    (which hold only where they are solved exactly)."""
     C = c_step_xi(B, n, Xi, reg)
     E, data, gB, _ = objective(B, C, Pi, Xi, w2, reg, grad_C=False)
     return C, (E, data, gB, 0.0)
@@ -110,20 +72,13 @@ def project(Pi, Xs):
 
 
 def objective(B, C, Pi, Xi, w2, reg, grad_C=True):
-    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC; dE/dC None when not
+    """E(B, C) of (*), its data term and gradients (dE/dB, dE/dC; None when not
     ``grad_C``).
 
     With orthonormal camera rows, ``||W_f - R_f X_f||^2 = ||W_f||^2 - 2 <X_init_f, X_f> +
-    <X_f, Pi_f X_f>`` (``X_init_f = R_f'W_f``, ``Pi_f = R_f'R_f``), and
-    ``dE_data / dX# = G = Pi X - X_init``. ``w2 = ||W||_F^2``; Xi is X_init# (F, 3P).
-
-    Where 3P > 9r (many points: dense tracks) everything is computed in factored form,
-    without forming X# (F x 3P): ``G C = H_f B_f - X_init# C`` with ``H_f`` the per-frame
-    blocks of :func:`frame_hessians` (no weight), ``G'B = N C - X_init#' B`` with N the
-    normal matrix of :func:`c_step` (no weight), and the data term from the same products:
-    two passes over X_init# per call instead of six over F x 3P arrays (30,000 points x 100
-    frames: 0.11 s -> 0.03 s); with few points (MoCap) the per-frame r x r blocks cost more
-    than X# itself, and X# is formed.
+    <X_f, Pi_f X_f>`` (``X_init_f = R_f'W_f``, ``Pi_f = R_f'R_f``) and ``dE_data / dX# =
+    Pi X - X_init``; ``w2 = ||W||_F^2``, Xi is X_init# (F, 3P). Where 3P > 9r (dense tracks)
+    X# is never formed: the products go through the per-frame r x r blocks instead.
     """
     F, r = B.shape
     if Xi.shape[1] <= 9 * r:
@@ -148,7 +103,8 @@ def _normal_matrix(B, Pi):
     """``sum_f (B_f B_f') kron Pi_f`` (3r x 3r, rows and columns (i, a))."""
     F, r = B.shape
     BB = (B[:, :, None] * B[:, None, :]).reshape(F, r * r)
-    return (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3).reshape(3 * r, 3 * r)
+    N = (BB.T @ Pi.reshape(F, 9)).reshape(r, r, 3, 3).transpose(0, 2, 1, 3)
+    return N.reshape(3 * r, 3 * r)
 
 
 def frame_hessians(C, Pi, reg):
@@ -165,17 +121,15 @@ def frame_hessians(C, Pi, reg):
 
 def _pivot_floor(H):
     """(n,) the smallest squared Cholesky pivot of each matrix of the batch H (n, r, r):
-    ``1e-14`` of its mean diagonal (see :func:`_cholesky`)."""
+    ``1e-14`` of its mean diagonal."""
     tr = np.trace(H, axis1=1, axis2=2) / H.shape[1]
     return 1e-14 * np.maximum(tr, 1e-30 * max(float(tr.max(initial=0.0)), 1e-280))
 
 
 def _cholesky(H):
-    """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n.
-
-    A pivot that rounding takes below ``1e-14`` of its matrix's mean diagonal (a singular
-    H_f: shark's exact W on random cameras) is raised to that floor, so that the factor and
-    its inverse stay finite (before, the pivot went to 1e-300 and the inverse overflowed)."""
+    """Lower Cholesky factors of a batch of SPD matrices (n, r, r), vectorised over n; a
+    pivot that rounding takes below :func:`_pivot_floor` (a singular H_f) is raised to it,
+    so that the factor and its inverse stay finite."""
     r = H.shape[1]
     L = np.zeros_like(H)
     floor = _pivot_floor(H)
@@ -184,17 +138,14 @@ def _cholesky(H):
         d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), floor))
         L[:, j, j] = d
         if j + 1 < r:
-            L[:, j + 1:, j] = (H[:, j + 1:, j]
-                               - np.matmul(L[:, j + 1:, :j], Lj[:, :, None])[:, :, 0]) / d[:, None]
+            rest = H[:, j + 1:, j] - np.matmul(L[:, j + 1:, :j], Lj[:, :, None])[:, :, 0]
+            L[:, j + 1:, j] = rest / d[:, None]
     return L
 
 
 def _lower_inverse(L, out=None):
-    """Inverses of a batch of lower-triangular matrices (n, r, r): by blocks
-    (``[[A, 0], [M, D]]^-1 = [[A^-1, 0], [-D^-1 M A^-1, D^-1]]``, batched products, written
-    into one array) down to blocks of at most 8, which :func:`_lower_inverse_small` inverts
-    (drink, 1102 matrices of 21 x 21: 3 - 5 ms, against 5 - 6 ms by forward substitution
-    alone)."""
+    """Inverses of a batch of lower-triangular matrices (n, r, r), by blocks
+    (``[[A, 0], [M, D]]^-1 = [[A^-1, 0], [-D^-1 M A^-1, D^-1]]``) down to blocks of 8."""
     r = L.shape[1]
     if out is None:
         out = np.zeros_like(L)
@@ -209,8 +160,7 @@ def _lower_inverse(L, out=None):
 
 
 def _lower_inverse_small(L):
-    """:func:`_lower_inverse` by forward substitution with the batch as the innermost axis
-    (every step a contiguous multiply-add over n)."""
+    """:func:`_lower_inverse` by forward substitution, the batch the innermost axis."""
     n, r, _ = L.shape
     A = np.ascontiguousarray(L.transpose(1, 2, 0))                  # (r, r, n)
     X = np.zeros_like(A)
@@ -223,9 +173,8 @@ def _lower_inverse_small(L):
 
 
 def _factor(H):
-    """Lower Cholesky factors of the SPD batch H (n, r, r): LAPACK's, batched by numpy, or
-    :func:`_cholesky` (with its pivot floor) where a pivot of LAPACK's falls below that
-    floor or LAPACK fails."""
+    """Lower Cholesky factors of the SPD batch H (n, r, r): LAPACK's, or :func:`_cholesky`
+    where a pivot falls below its floor or LAPACK fails."""
     try:
         L = np.linalg.cholesky(H)
     except np.linalg.LinAlgError:
@@ -248,9 +197,8 @@ def frame_preconditioner(C, Pi, reg):
 
 def svd_align(B, C):
     """Factors of the same X# = B C' that minimise ``sum_i reg_i (|B_i|^2 + |C_i|^2)`` for
-    every non-decreasing reg: ``B = U S^1/2``, ``C = V S^1/2`` with ``X# = U S V'`` (Iglesias,
-    Olsson, Oernhag, ECCV 2020, Sec. 3), computed from the QR factors of B and C (an
-    r x r SVD). Never raises E; the largest singular value goes to the smallest weight."""
+    every non-decreasing reg: ``B = U S^1/2``, ``C = V S^1/2`` with ``X# = U S V'`` (Iglesias
+    et al., ECCV 2020, Sec. 3), from the QR factors of B and C."""
     Qb, _, U, s, Qc, Vt = _product_svd(B, C)
     q = np.sqrt(s)
     return (Qb @ U) * q, (Qc @ Vt.T) * q
@@ -258,8 +206,7 @@ def svd_align(B, C):
 
 def _product_svd(B, C):
     """``(Qb, Rb, U, s, Qc, V')``: the thin QR factors of B and C and the SVD ``U s V'``
-    of ``Rb Rc'`` (so that ``B C' = (Qb U) s (Qc V)'``), shared by :func:`svd_align` and
-    :func:`_aligned`."""
+    of ``Rb Rc'`` (``B C' = (Qb U) s (Qc V)'``)."""
     Qb, Rb = np.linalg.qr(B)
     Qc, Rc = np.linalg.qr(C)
     U, s, Vt = np.linalg.svd(Rb @ Rc.T)
@@ -267,7 +214,7 @@ def _product_svd(B, C):
 
 
 def relative_gradient(B, C, gB, gC):
-    """``||grad E|| / ||(B, C)||`` (scale-free)."""
+    """``||grad E|| / ||(B, C)||``."""
     g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
     return g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
 
@@ -290,28 +237,13 @@ def _aligned(B, C, prune_rtol):
 
 
 def rank_certificate(B, C, Pi, Xi, reg_next):
-    """Whether columns more would lower E at (B, C), and along which directions.
+    """Whether columns more would lower E at (B, C), and along which directions: a new
+    column of weight w lowers E to first order exactly when a singular value of
+    ``G = dE_data / dX#`` (outside the column space of B and the row space of C') is above w.
 
-    ``G = dE_data / dX#`` with its components in the column space of B and the row space
-    of C' removed; a new column of weight w lowers E to first order exactly when it pairs
-    with a singular value of that G above w. Singular pairs from the Gram matrix of the
-    shorter side.
-
-    Parameters
-    ----------
-    B, C : (F, r), (3P, r) ndarray
-    Pi, Xi : (F, 3, 3), (F, 3P) ndarray
-        ``R_f'R_f`` and X_init#.
-    reg_next : (m,) ndarray
-        The weights of the next m columns (non-decreasing).
-
-    Returns
-    -------
-    ratio : float
-        ``sigma_1(G_perp) / reg_next[0]``: at most 1 when the rank of ``X# = B C'`` is the
-        prior's choice and not a cap.
-    s, U : (m,), (F, m) ndarray
-        The m largest singular values of G_perp and their left singular vectors.
+    Returns ``(ratio, s, U)``: ``sigma_1(G) / reg_next[0]`` (at most 1 when the rank of X#
+    is the prior's choice), and the m = len(reg_next) largest singular values of G with
+    their left singular vectors (F, m).
     """
     G = project(Pi, B @ C.T) - Xi
     Qb, _ = np.linalg.qr(B)
@@ -363,19 +295,17 @@ def _two_loop(g, S, Y, Linv):
     return -d
 
 
-#: the line search: sufficient decrease (Armijo), the approximate Wolfe test's bound on the
-#: slope at the step (Hager and Zhang 2005: ``phi'(t) <= (2 ARMIJO_HZ - 1) phi'(0)``), and
-#: the most backtracking steps
+#: the line search: sufficient decrease (Armijo), the approximate Wolfe bound on the slope
+#: (Hager and Zhang 2005: ``phi'(t) <= (2 ARMIJO_HZ - 1) phi'(0)``), the most backtracking
 ARMIJO, ARMIJO_HZ, MAX_BACKTRACK = 1e-4, 0.1, 40
-#: E is trusted to this fraction of its value at the start of :func:`minimise`: below it,
-#: a step is judged by its slope (E is a difference of terms of the size of ||W||^2)
+#: E is trusted to this fraction of its starting value; below, a step is judged by its slope
 E_ROUNDING = 1e-12
 
 
 def _line_search(reduced, B, d, E, slope, e_tol):
-    """The first step ``B + t d`` from t = 1 with sufficient decrease, or, where the change
-    of E is within its rounding ``e_tol``, with the approximate Wolfe slope (t shrunk by
-    quadratic interpolation, kept in [0.1 t, 0.5 t]): (B_t, C_t, values), or None."""
+    """The first step ``B + t d`` from t = 1 with sufficient decrease (or, within E's
+    rounding ``e_tol``, the approximate Wolfe slope), t shrunk by quadratic interpolation:
+    (B_t, C_t, values), or None."""
     t = 1.0
     for _ in range(MAX_BACKTRACK):
         Bt = B + t * d
@@ -390,55 +320,34 @@ def _line_search(reduced, B, d, E, slope, e_tol):
     return None
 
 
-def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
-             prune_rtol=None):
+def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
     """L-BFGS on the reduced objective ``f(B) = min_C E(B, C)`` of (*) from B (F, r).
 
-    The initial inverse Hessian of L-BFGS is the per-frame block diagonal ``H_f^-1``
-    (``H_f = d^2 E / dB_f^2`` at the current C, :func:`frame_preconditioner`), refreshed
-    every ``segment`` iterations together with an :func:`svd_align`-ment of the factors
-    (which keeps X# and never raises E; without it the columns sort their singular values
-    among the weights over hundreds of iterations). The curvature pairs are carried
-    through the alignment's change of basis (``s -> s M``, ``y -> y M^-T``), so the
-    restarts do not empty L-BFGS's memory; the line search asks for sufficient decrease
-    from the full step (:func:`_line_search`). With ``prune_rtol``, aligned columns whose
-    singular value is at most ``prune_rtol`` times the largest are dropped at a restart
-    (they are the last ones, so the weights of the others do not change; ``reduced`` must
-    read the weights of the first ``B.shape[1]`` columns; the memory is emptied then);
-    whether they should stay zero is the caller's test (:func:`rank_certificate`).
+    The initial inverse Hessian is the per-frame block diagonal ``H_f^-1``
+    (:func:`frame_preconditioner`), refreshed every ``segment`` iterations with an
+    :func:`svd_align`-ment of the factors (same X#, E never raised); the curvature pairs are
+    carried through that change of basis (``s -> s M``, ``y -> y M^-T``). With
+    ``prune_rtol``, aligned columns whose singular value is at most ``prune_rtol`` times the
+    largest are dropped at a restart (the last ones: ``reduced`` reads the weights of the
+    first ``B.shape[1]`` columns).
 
-    Parameters
-    ----------
-    B : (F, r) ndarray
-    reduced : callable(B) -> (C, (E, data, gB, gC))
-        ``C = argmin_C E(B, C)`` and, at (B, C), the objective, its data term (or any
-        other measure) and its gradients (gC may be 0.0: it vanishes at that C), as
-        :func:`reduced_objective` returns them.
-    Pi : (F, 3, 3) ndarray
-        ``R_f'R_f``.
-    reg : (r,) ndarray
-    gtol : float
-        Stop at a relative gradient norm (:func:`relative_gradient`) at most gtol.
-    max_iter : int
-    on_iterate : callable(B, C, values) or None
-        Called at the start and after every iteration (e.g. to record a history).
-    segment : int, optional
-        Iterations between restarts (default :data:`SEGMENT`).
-    prune_rtol : float, optional
-        Drop the columns that die (above).
+    ``problem`` holds ``reduced(B)``, which returns ``(C, (E, data, dE/dB, dE/dC))`` at ``C =
+    argmin_C E(B, C)`` (:func:`reduced_objective`), ``Pi`` (F, 3, 3) = ``R_f'R_f``, ``reg``
+    (r,), ``gtol`` (stop at that relative gradient, :func:`relative_gradient`), ``max_iter``
+    and ``record(B, C, values)``, called at the start and after every iteration.
 
     Returns
     -------
     B, C : the factors (aligned, r or fewer columns), rel : the final relative gradient,
     n_iter : int
     """
-    segment = SEGMENT if segment is None else segment
+    reduced, record, Pi, reg = problem.reduced, problem.record, problem.Pi, problem.reg
+    gtol, max_iter = problem.gtol, problem.max_iter
     C, _ = reduced(B)
     B, _, _, _ = _aligned(B, C, None)               # a start's small columns may grow
     C, vals = reduced(B)
     rel = relative_gradient(B, C, vals[2], vals[3])
-    if on_iterate is not None:
-        on_iterate(B, C, vals)
+    record(B, C, vals)
     n_iter, S, Y = 0, [], []
     e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
@@ -459,8 +368,7 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
             B, C, vals = step
             n_iter += 1
             rel = relative_gradient(B, C, vals[2], vals[3])
-            if on_iterate is not None:
-                on_iterate(B, C, vals)
+            record(B, C, vals)
             if rel <= gtol:
                 break
         r = B.shape[1]
@@ -474,10 +382,7 @@ def minimise(B, reduced, Pi, reg, gtol, max_iter, on_iterate=None, segment=None,
     return B, C, rel, n_iter
 
 
-#: curvature pairs kept by L-BFGS (as many as the iterations between alignments: with the
-#: pipeline's rotations, 5 / 10 / 20 / 40 pairs take drink 0.70 / 0.76 / 0.83 / 0.93 s,
-#: pickup 0.21 / 0.22 / 0.23 / 0.25 s, shark 162 / 112 / 121 / 192 iterations;
-#: measured)
+#: curvature pairs kept by L-BFGS (as many as the iterations between alignments)
 MEMORY = 10
 
 
