@@ -24,7 +24,8 @@ from .metrics import depth_amplification
 from .settings import KEYWORDS, METHODS, Settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import SPREAD_MAX, fill_unseen
-from .stages.measurement import Factorization, measure, power_of_two_scale
+from .linalg import power_of_two_scale
+from .stages.measurement import Factorization, measure
 from .stages.rotations import RotationResult, estimate_rotations
 from .stages.shape import ShapeResult, solve_pseudo_inverse, solve_shape
 from .validation import blas_threads, check_problem

@@ -70,8 +70,8 @@ class Settings:
 
     Examples
     --------
-    >>> Settings(method="bmm").shape
-    BilinearSettings(rank=None, mu_factor=0.01, mu_noise=5.0, mu=None, min_mu=1e-05, gtol=1e-08, max_iter=3000)
+    >>> Settings(method="bmm").shape_solver, Settings(method="bmm").prior
+    ('bilinear', 'nuclear')
     >>> Settings(shape=AdmmSettings(N=2)).shape.N
     2
     """

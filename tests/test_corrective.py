@@ -34,7 +34,6 @@ def test_constraint_matrix_matches_definition():
     want[0::2] = np.einsum("fi,ij,fj->f", m1, Q, m1) - np.einsum("fi,ij,fj->f", m2, Q, m2)
     want[1::2] = np.einsum("fi,ij,fj->f", m1, Q, m2)
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(RX.gram_from_vech(Q[RX.vech_index(3 * K)], 3 * K), Q)
 
 
 def test_jacobian_matches_finite_differences():
@@ -52,7 +51,8 @@ def test_jacobian_matches_finite_differences():
                     - C.triplet_residuals(G - d.reshape(G.shape), M, w)) / (2 * h)
     np.testing.assert_allclose(J, Jn, rtol=1e-5, atol=1e-6)
     assert C.triplet_cost(G, M, w) == pytest.approx(float(r @ r))
-    np.testing.assert_allclose(C.triplet_gradient(G, M, w).ravel(), J.T @ r,
+    frames = C._Frames(M, w)
+    np.testing.assert_allclose(frames.gradient(frames.products(G)).ravel(), J.T @ r,
                                rtol=1e-12, atol=1e-12 * np.abs(J.T @ r).max())
 
 

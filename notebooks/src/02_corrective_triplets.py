@@ -22,17 +22,17 @@
 # minimising
 # $\sum_f(1-\|\mathbf r_2\|^2/\|\mathbf r_1\|^2)^2+4\sum_f(\mathbf r_1\cdot\mathbf r_2/\|\mathbf r_1\|^2)^2$.
 # The paper uses **all $K$ triplets** ("organic priors in the rotation space"); how it gets
-# $K$ different ones is not stated.
+# $K$ different ones is not stated (the library's answer, the best triplet and $K-1$ refined
+# from it on temporal windows, is in notebook 03).
 #
-# `nrsfm.stages.corrective.corrective_triplets` returns refined triplets sorted by cost, from one
-# of several starting points (`starts=`): `"dai"`, Dai's relaxation as specified (minimum
-# nuclear norm over the approximate null space, coefficients summing to 1); `"relaxed"` (the
-# start of the library's search), a penalised PSD relaxation (trace + penalised constraint
-# residual); `"search"` (the library default), that relaxation at two penalties and then
-# seeded random starts, stopped once the lowest cost has been reached by two starts;
-# `"columns"`, the $K$ column blocks of a relaxed Gram matrix, each refined (the paper's
-# "K column triplets" read literally; `gram=` picks the relaxation); `"multistart"`, many
-# screened starts, as a cross-check.
+# `nrsfm.stages.relaxation` and `nrsfm.stages.corrective` hold the pieces:
+# `constraint_matrix` ($\mathbf A$, the $2F$ equations on $\mathrm{vech}(\mathbf Q)$);
+# `penalized_gram`, a penalised PSD relaxation (trace + penalised constraint residual, mean
+# squared camera scale fixed to 1) in place of Dai's minimum nuclear norm over the solution
+# space; `triplets_from_gram`, the triplet of its top-3 eigenpairs; `refine_triplet`,
+# Levenberg-Marquardt on Dai's cost; and `corrective_triplets`, the library's search: that
+# relaxation at two penalties, then seeded random starts, stopped once the lowest cost has
+# been reached by two starts. The cells below compare one refined relaxation with the search.
 
 # %%
 import os
@@ -48,13 +48,19 @@ import rerun as rr
 
 import data_tools
 import nrsfm
-from nrsfm.research.triplets import corrective_triplets_from, solution_space
-from nrsfm.stages.corrective import corrective_triplets, triplet_cost
-from nrsfm.stages.relaxation import constraint_matrix
+from nrsfm.stages.corrective import corrective_triplets, refine_triplet, triplet_cost
+from nrsfm.stages.relaxation import constraint_matrix, penalized_gram, triplets_from_gram
 from nrsfm.stages.measurement import factorize
 from nrsfm.metrics import camera_alignment
 from nrsfm.published import published_value
 from nrsfm.views import output_path, show_recording, shown_path
+
+
+def relaxed_triplet(M_hat, K, lam=1e2):
+    """One start: the triplet of the penalised relaxation's top-3 eigenpairs, refined on all
+    frames. Returns (G, Dai's cost)."""
+    G, cost, _ = refine_triplet(triplets_from_gram(penalized_gram(M_hat, K, lam=lam)), M_hat)
+    return G, cost
 
 
 def triplet_cameras(G, M_hat):
@@ -91,7 +97,8 @@ def sign_free_rotation_error(R2, R_gt, n_iter=20):
 #
 # The true triplets are known here: $\mathbf G_{true}=\hat{\mathbf M}^+\mathbf M_{true}$.
 # They satisfy the constraints exactly (Dai's cost $\approx0$), and the constraint matrix
-# $\mathbf A$ has exactly $2K^2-K$ (near-)zero singular values.
+# $\mathbf A$ has exactly $2K^2-K$ (near-)zero singular values: the solution space is the
+# null space of $\mathbf A$, spanned by its last $2K^2-K$ right singular vectors.
 
 # %%
 seq = data_tools.default_sequence()
@@ -107,43 +114,48 @@ print("Dai's cost of the true triplets:", np.array(true_costs))
 assert max(true_costs) < 1e-15
 
 A = constraint_matrix(M_hat)
-basis, sv_A = solution_space(A, K)
-n = 3 * K
+n, d = 3 * K, 2 * K * K - K
+_, sv_A, Vt = np.linalg.svd(A)               # singular values in decreasing order
+basis = Vt[-d:].T                             # the solution space: null space of A
 print(f"A: {A.shape} (2F x n(n+1)/2 = {n * (n + 1) // 2}); null-space basis {basis.shape}")
-d = 2 * K * K - K
 print("smallest singular values of A:", np.array2string(sv_A[-d - 2:], precision=2))
 assert basis.shape == (n * (n + 1) // 2, d)
 assert sv_A[-d] / sv_A[0] < 1e-6 and sv_A[-d - 1] / sv_A[0] > 1e-3   # a clean gap at 2K^2-K
 
 # %% [markdown]
-# Dai's relaxation, the penalised one, and the $K$ column triplets, each refined:
+# The penalised relaxation's triplet, refined, and the library's search: both exact here.
 
 # %%
-res = {}
-for mode in ("dai", "relaxed", "columns"):
-    t0 = time.perf_counter()
-    res[mode] = corrective_triplets_from(M_hat, K, starts=mode)
-    e = [sign_free_rotation_error(triplet_cameras(G, M_hat)[0], R) for G in res[mode].G]
-    print(f"{mode:8s} {len(res[mode].G)} triplet(s) in {time.perf_counter() - t0:.2f} s: "
-          f"cost {np.array2string(res[mode].costs, precision=1)}, "
+t0 = time.perf_counter()
+G_rel, cost_rel = relaxed_triplet(M_hat, K)
+t_rel = time.perf_counter() - t0
+t0 = time.perf_counter()
+search = corrective_triplets(M_hat, K)
+t_search = time.perf_counter() - t0
+for label, Gs, costs, secs in (("relaxed", G_rel[None], np.array([cost_rel]), t_rel),
+                               ("search", search.G, search.costs, t_search)):
+    e = [sign_free_rotation_error(triplet_cameras(G, M_hat)[0], R) for G in Gs]
+    print(f"{label:8s} {len(Gs)} triplet(s) in {secs:.2f} s: "
+          f"cost {np.array2string(costs, precision=1)}, "
           f"e_R {np.array2string(np.array(e), precision=1)}")
-    assert max(e) < 1e-5                       # measured 1e-8 - 1e-7: every triplet is exact
-assert res["columns"].G.shape == (K, 3 * K, 3)
+    assert max(e) < 1e-5                       # every triplet is exact (e_R printed above)
+print(f"search: {search.n_starts} starts, the best minimum reached by {search.hits}, "
+      f"stopped on {search.stopped!r}")
 
 # %% [markdown]
 # Each triplet also carries its coefficients $c_{fk}$ (the row norms of
 # $\hat{\mathbf M}_f\mathbf G^k$, known up to a global sign and scale). Frames where a
 # triplet's $|c_{fk}|$ is small see the camera badly: that is why the samples are later
-# filtered (notebook 03). The coefficient of a column triplet is a mixture of the true
+# filtered (notebook 03). The coefficient of a refined triplet is a mixture of the true
 # ones, since any linear combination of triplets of the same rotation is again one.
 
 # %%
-coeffs = np.stack([triplet_cameras(G, M_hat)[1] for G in res["columns"].G])
+coeff = triplet_cameras(search.G[0], M_hat)[1]
 fig, ax = plt.subplots(1, 2, figsize=(10, 3))
 ax[0].plot(C)
 ax[0].set_title("true coefficients c_fk", fontsize=9)
-ax[1].plot((coeffs / coeffs.max(axis=1, keepdims=True)).T)
-ax[1].set_title("|c_fk| of the column triplets (normalised)", fontsize=9)
+ax[1].plot(coeff / coeff.max())
+ax[1].set_title("|c_f| of the search's triplet (normalised)", fontsize=9)
 for a in ax:
     a.set_xlabel("frame")
 plt.show()
@@ -151,8 +163,8 @@ plt.show()
 # %% [markdown]
 # ## With noise
 #
-# 2 % noise: the constraints no longer hold exactly; the best refined triplet stays close
-# (default start).
+# 2 % noise: the constraints no longer hold exactly; the best refined triplet of the search
+# stays close.
 
 # %%
 noisy = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.02, seed=7)
@@ -165,15 +177,12 @@ print("costs", np.array2string(r_noisy.costs, precision=3), " e_R",
 assert e_noisy[0] < 0.1            # the best-cost triplet comes first (e_R printed above)
 
 # %% [markdown]
-# ## MoCap (when `NRSFM_DATA` is set): the triplets land in different minima
+# ## MoCap (when `NRSFM_DATA` is set): the minima of Dai's cost
 #
 # On *pickup* ($K=12$) Dai's cost has one good minimum (its e_R is in the output below, next
-# to the paper's e_R for its method and for BMM, from `nrsfm.published`). Where the
-# refinement starts decides whether
-# it gets there: from Dai's relaxation as specified it does not; from the column blocks of
-# that (nuclear-norm) relaxation no triplet does; from the penalised relaxation it does, and
-# so do most of that relaxation's column blocks. The plot shows cost against the sign-free
-# e_R of every refined triplet.
+# to the paper's e_R for its method and for BMM, from `nrsfm.published`). The refined
+# penalised relaxation gets there; the search reaches the same minimum again from its second
+# start and stops.
 
 # %%
 mocap_rows = None
@@ -181,34 +190,27 @@ if os.environ.get("NRSFM_DATA"):
     pickup = data_tools.load_mocap("pickup")
     f_p = factorize(pickup.W / np.std(pickup.W), pickup.K)
     out = {}
-    for label, kw in (("dai", dict(starts="dai")), ("relaxed", dict(starts="relaxed")),
-                      ("columns of nuclear relaxation", dict(starts="columns", gram="nuclear")),
-                      ("columns of penalised relaxation", dict(starts="columns")),
-                      ("multistart", dict(starts="multistart"))):
-        t0 = time.perf_counter()
-        with np.errstate(all="ignore"):
-            r_p = corrective_triplets_from(f_p.M_hat, pickup.K, **kw)
+    t0 = time.perf_counter()
+    G_p, c_p = relaxed_triplet(f_p.M_hat, pickup.K)
+    out["relaxed"] = (G_p[None], np.array([c_p]), time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    s_p = corrective_triplets(f_p.M_hat, pickup.K)
+    out["search"] = (s_p.G, s_p.costs, time.perf_counter() - t0)
+    for label, (Gs, costs, secs) in out.items():
         e_p = np.array([sign_free_rotation_error(triplet_cameras(G, f_p.M_hat)[0],
-                                                 pickup.rotations) for G in r_p.G])
-        out[label] = (r_p.costs, e_p)
-        print(f"{label:32s} {len(r_p.G):2d} triplet(s) {time.perf_counter() - t0:5.2f} s: "
-              f"best cost {r_p.costs[0]:.4f}, e_R {e_p[0]:.4f}; all e_R "
+                                                 pickup.rotations) for G in Gs])
+        out[label] = (costs, e_p)
+        print(f"{label:8s} {secs:5.2f} s, {len(Gs)} distinct minima: best cost "
+              f"{costs[0]:.4f}, e_R {e_p[0]:.4f}; all costs "
+              f"{np.array2string(costs, precision=4, max_line_width=200)}, e_R "
               f"{np.array2string(e_p, precision=2, max_line_width=200)}")
-    mocap_rows = out["columns of nuclear relaxation"]
+    print(f"search: {s_p.n_starts} starts ({', '.join(h[0] for h in s_p.history)}), the "
+          f"best minimum reached by {s_p.hits}, stopped on {s_p.stopped!r}")
     paper_er = {m: published_value("mocap_rotation_error", m)["pickup"] for m in ("ours", "BMM")}
     print(f"paper e_R on pickup: ours {paper_er['ours']}, BMM {paper_er['BMM']}")
-    assert out["relaxed"][1][0] < 0.15 and out["multistart"][1][0] < 0.15
-    assert np.isclose(out["relaxed"][0][0], out["multistart"][0][0], rtol=1e-3)
-    assert out["dai"][0][0] > 10 * out["relaxed"][0][0]
-    assert out["columns of nuclear relaxation"][0].min() > 10 * out["relaxed"][0][0]
-    fig, ax = plt.subplots(figsize=(5, 3.2))
-    for label, (c, e) in out.items():
-        ax.loglog(c, e, "o", label=label, alpha=0.7)
-    ax.set_xlabel("Dai's cost of the refined triplet")
-    ax.set_ylabel("e_R (sign-free)")
-    ax.set_title("pickup: refined triplets by start", fontsize=9)
-    ax.legend(fontsize=7)
-    plt.show()
+    assert out["relaxed"][1][0] < 0.15 and out["search"][1][0] < 0.15
+    assert np.isclose(out["relaxed"][0][0], out["search"][0][0], rtol=1e-3)
+    assert s_p.hits >= 2
 else:
     print("NRSFM_DATA not set: MoCap part skipped")
 
@@ -216,11 +218,13 @@ else:
 # ## Under track noise: one relaxation is not enough, the search is
 #
 # With Gaussian noise on W of 25% of its mean row standard deviation (the top of the range of
-# the paper's Fig. 3a), the penalised relaxation at its old single penalty refines into a bad
-# minimum of Dai's cost. The default search (`starts="search"`) tries the relaxation at two
+# the paper's Fig. 3a), the penalised relaxation at one penalty ($\lambda=100$) refines into
+# a bad minimum of Dai's cost. The search (`corrective_triplets`) tries the relaxation at two
 # penalties and then seeded random starts, and stops when the lowest cost has been reached
 # by two starts: it ends in a much cheaper minimum with a far smaller e_R (the cell below
-# prints both, and the ratio of the costs). The seed fixes every random start.
+# prints both, and the ratio of the costs). The seed fixes every random start. The plot
+# shows cost against the sign-free e_R of every distinct minimum the search's starts
+# reached (the single relaxation's among them).
 
 # %%
 if os.environ.get("NRSFM_DATA"):
@@ -228,41 +232,55 @@ if os.environ.get("NRSFM_DATA"):
 
     Wn, _ = centre_rows(data_tools.add_noise(pickup.W, 0.25, seed=0))
     f_n = factorize(Wn / working_scale(Wn), pickup.K)
-    one = corrective_triplets_from(f_n.M_hat, pickup.K, starts="relaxed")
+    G_one, cost_one = relaxed_triplet(f_n.M_hat, pickup.K)
     srch = corrective_triplets(f_n.M_hat, pickup.K, seed=0)
-    e_one = sign_free_rotation_error(triplet_cameras(one.G[0], f_n.M_hat)[0], pickup.rotations)
+    e_one = sign_free_rotation_error(triplet_cameras(G_one, f_n.M_hat)[0], pickup.rotations)
     e_srch = sign_free_rotation_error(triplet_cameras(srch.G[0], f_n.M_hat)[0],
                                       pickup.rotations)
-    s = srch.info["search"]
-    print(f"single relaxation: cost {one.costs[0]:.1f}, e_R {e_one:.3f}")
-    print(f"search: cost {srch.costs[0]:.1f}, e_R {e_srch:.3f}, {s['n_starts']} starts, "
-          f"best reached by {s['hits']}, stopped on {s['stopped']!r}")
-    print(f"the search's minimum is {one.costs[0] / srch.costs[0]:.1f}x cheaper than the "
+    print(f"single relaxation: cost {cost_one:.1f}, e_R {e_one:.3f}")
+    print(f"search: cost {srch.costs[0]:.1f}, e_R {e_srch:.3f}, {srch.n_starts} starts, "
+          f"best reached by {srch.hits}, stopped on {srch.stopped!r}")
+    print(f"the search's minimum is {cost_one / srch.costs[0]:.1f}x cheaper than the "
           f"single relaxation's")
-    assert srch.costs[0] < 0.5 * one.costs[0] and e_srch < 0.3 < e_one
-    assert s["hits"] >= 2
+    assert srch.costs[0] < 0.5 * cost_one and e_srch < 0.3 < e_one
+    assert srch.hits >= 2
+    e_minima = np.array([sign_free_rotation_error(triplet_cameras(G, f_n.M_hat)[0],
+                                                  pickup.rotations) for G in srch.G])
+    mocap_rows = (srch.costs, e_minima)
+    print(f"the search's {len(srch.G)} distinct minima: costs "
+          f"{np.array2string(srch.costs, precision=1)}, e_R "
+          f"{np.array2string(e_minima, precision=3)}")
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    ax.loglog(srch.costs, e_minima, "o", label="the search's minima", alpha=0.7)
+    ax.loglog([cost_one], [e_one], "s", label="single relaxation", alpha=0.7)
+    ax.set_xlabel("Dai's cost of the refined triplet")
+    ax.set_ylabel("e_R (sign-free)")
+    ax.set_title("pickup, 25% noise: minima of Dai's cost", fontsize=9)
+    ax.legend(fontsize=7)
+    plt.show()
 
 # %% [markdown]
 # ## Recording
 #
-# Per triplet: the refined cost and e_R (bar charts), and the coefficients $|c_{fk}|$ per
-# frame (timeline `frame`), logged here with rerun directly (the pipeline's recording of the
-# full rotation stage is in notebook 03/04).
+# The cost and e_R of every minimum the search found on noisy pickup (bar charts), the
+# singular values of $\mathbf A$, and per frame (timeline `frame`) the coefficient $|c_f|$
+# of the search's triplet beside the true $c_{fk}$, logged here with rerun directly (the
+# pipeline's recording of the full rotation stage is in notebook 03/04).
 
 # %%
 path = output_path("02_corrective_triplets.rrd")
 rec = rr.RecordingStream("nrsfm-02", recording_id="02_corrective_triplets")
 rec.save(path)
 frames = rr.TimeColumn("frame", sequence=np.arange(F))
+rec.send_columns("/synthetic/coefficient/search_triplet", indexes=[frames],
+                 columns=rr.Scalars.columns(scalars=coeff))
 for k in range(K):
-    rec.send_columns(f"/synthetic/coefficient/triplet_{k + 1}", indexes=[frames],
-                     columns=rr.Scalars.columns(scalars=coeffs[k]))
     rec.send_columns(f"/synthetic/true_coefficient/basis_{k + 1}", indexes=[frames],
                      columns=rr.Scalars.columns(scalars=C[:, k]))
 rec.log("/synthetic/constraint_singular_values", rr.BarChart(sv_A), static=True)
 if mocap_rows is not None:
-    rec.log("/pickup/triplet_cost", rr.BarChart(mocap_rows[0]), static=True)
-    rec.log("/pickup/triplet_e_R", rr.BarChart(mocap_rows[1]), static=True)
+    rec.log("/pickup_noisy/minimum_cost", rr.BarChart(mocap_rows[0]), static=True)
+    rec.log("/pickup_noisy/minimum_e_R", rr.BarChart(mocap_rows[1]), static=True)
 rec.flush()
 rec.disconnect()
 print(f"wrote {shown_path(path)} ({path.stat().st_size / 1e3:.0f} kB)")

@@ -26,7 +26,7 @@
 # The ADMM is a continuation ($\rho$ grows 10 % per iteration): its answer is where the path
 # freezes. The second half of this notebook sets beside it the solver of
 # `nrsfm.stages.shape.bilinear` (`shape_solver="bilinear"`, the library's default: it measured
-# better on exactness, stability and noise; `docs/shape_stage.md`). The first half passes
+# better on exactness, stability and noise; `docs/studies/shape.md`). The first half passes
 # `shape_solver="admm"` explicitly. The bilinear solver minimises the same weighted nuclear norm in the
 # factored form of Iglesias, Olsson & Örnhag (ECCV 2020),
 # $E(\mathbf B,\mathbf C)=\tfrac12\|\mathbf W-\mathbf R\mathbf X\|_F^2+\tfrac\mu2\sum_i a_i(\|\mathbf B_i\|^2+\|\mathbf C_i\|^2)$,
@@ -152,9 +152,10 @@ plt.show()
 # $\mathbf W$ by a scale computed from $\mathbf W$ alone (`normalization_scale` of
 # `nrsfm.stages.shape.admm`) and returns shapes in the units it was given. The two runs
 # below then differ only by rounding, and still not by nothing: the ADMM stops where its
-# residual crosses a threshold, and the rounding of $10\mathbf W$ moves that stop by a
-# couple of iterations (e3d 0.3 % apart with numpy 2.4). The default bilinear solver stops
-# at its answer instead (one answer to 0.05 % under units, `docs/shape_stage.md`).
+# residual crosses a threshold, and the rounding of $10\mathbf W$ moves that stop (the cell
+# prints both runs' iterations: the run on $10\mathbf W$ may even miss the threshold and
+# stop at $\rho_{max}$), though their e3d agree to 1 % (the assert). The default bilinear
+# solver stops at its answer instead (one answer under units, `docs/studies/shape.md`).
 
 # %%
 by_scale = {c: nrsfm.e3d(admm_iterations(c * seq.W, seq.rotations, K, "organic", AdmmSettings()).shapes, seq.shapes)
@@ -175,12 +176,15 @@ assert np.isclose(scaled_run.errors(seq.shapes)["e3d"], e3d["organic"], rtol=1e-
 # How many leading singular values to leave unpenalised. On the synthetic sequence
 # ($K=3$) small $N$ are equivalent; once $N$ exceeds what the data supports, the unpenalised
 # directions take the noise and the error jumps. With `NRSFM_DATA` set, the same on MoCap
-# *pickup* ($K=12$, ground-truth rotations).
+# *pickup* ($K=12$, ground-truth rotations). $N$ is a setting of the ADMM:
+# `settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))` (the method is the default,
+# `organic`).
 
 # %%
 Ns = [0, 1, 2, 3, 4, 5]
-abl = [nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations, shape_solver="admm",
-                         shape_options=dict(N=N)).errors(seq.shapes)["e3d"] for N in Ns]
+abl = [nrsfm.reconstruct(seq.W, K, rotations=seq.rotations,
+                         settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))
+                         ).errors(seq.shapes)["e3d"] for N in Ns]
 print("synthetic e3d by N:", dict(zip(Ns, np.round(abl, 4))))
 assert max(abl[:4]) < 0.03 and min(abl[4:]) > 0.1
 
@@ -188,10 +192,9 @@ abl_m = None
 if os.environ.get("NRSFM_DATA"):
     pickup = data_tools.load_mocap("pickup")
     Ns_m = [0, 1, 2, 3, 5]
-    abl_m = [nrsfm.reconstruct(pickup.W, pickup.K, method="organic", rotations=pickup.rotations,
-                               shape_solver="admm",
-                               shape_options=dict(N=N)).errors(pickup.shapes)["e3d"]
-             for N in Ns_m]
+    abl_m = [nrsfm.reconstruct(pickup.W, pickup.K, rotations=pickup.rotations,
+                               settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))
+                               ).errors(pickup.shapes)["e3d"] for N in Ns_m]
     print("pickup e3d by N:", dict(zip(Ns_m, np.round(abl_m, 4))))
     assert abs(abl_m[1] - 0.014) < 0.002 and abl_m[-1] > 0.1
 fig, ax = plt.subplots(figsize=(5, 3))
@@ -237,7 +240,7 @@ assert max(r[0] for r in exact.values()) > 100 * max(r[1] for r in exact.values(
 # Each solver's own objective along its iterations: the ADMM's Eq. (10) cost (it is not
 # monotone: the constraint is only enforced as $\rho$ grows), and $E(\mathbf B,\mathbf C)$
 # of the factored solver with its relative gradient norm, the first-order optimality
-# measure it stops on (`gtol`, default $10^{-6}$). Same noisy sequence as above.
+# measure it stops on (`gtol`, default $10^{-8}$). Same noisy sequence as above.
 
 # %%
 bil = nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations,
@@ -305,8 +308,8 @@ assert spread["bilinear"] < 0.001 and spread["bilinear"] < spread["admm"]
 #
 # The MoCap sequences are not exactly rank $3K$, and there the factored solver's minimiser
 # is not always better than where the ADMM's path stops: the cell below runs both on pickup
-# with ground-truth rotations and prints e3d and seconds (the whole suite is
-# `benchmarks/shape_study.py`; the measured tables are in `docs/shape_stage.md`). The
+# with ground-truth rotations and prints e3d and seconds (the measured table is in
+# `docs/studies/shape.md`). The
 # pipeline's default is the factored solver nonetheless, for the exactness, stability and
 # noise results above; `shape_solver="admm"` runs the paper's ADMM.
 

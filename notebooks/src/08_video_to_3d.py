@@ -40,8 +40,7 @@ from nrsfm.views import (make_video_blueprint, output_path, save_video_recording
 # ## The video
 #
 # A face-like surface (dome, nose, brows, chin) that breathes and opens its jaw; 40 frames of
-# 240 x 320 pixels (small, so that this notebook stays fast; `benchmarks/dense_benchmark.py`
-# runs 100 frames of 640 x 480).
+# 240 x 320 pixels (small, so that this notebook stays fast).
 
 # %%
 video = make_video("face", n_frames=40, size=(240, 320), grid=41, seed=0)
@@ -126,8 +125,7 @@ for name, tracks in (("sparse", sparse), ("dense", dense)):
 # printed below from `nrsfm.published`) report lower errors. Is the tracker or the method the
 # limit here? The cell below reconstructs the exact projections of the surface points under
 # the mesh vertices the same way: their e3d is close to that of the dense tracks (both
-# printed), so at $K=1$ the error is the method's on this deformation, not the tracker's
-# (longer videos: `benchmarks/dense_benchmark.py`).
+# printed), so at $K=1$ the error is the method's on this deformation, not the tracker's.
 
 # %%
 # sparse: the lost tracks are completed as missing data, and a track lost early is

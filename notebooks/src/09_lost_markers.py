@@ -23,7 +23,7 @@
 #    the frames, in units of the shapes' RMS radius). Above `SPREAD_MAX` = .05 the point is
 #    `unreliable`: the summary counts it and the recording draws it orange to red.
 #
-# Measurements behind each choice: `docs/missing_data_scale.md`, section "Issue 24".
+# Measurements behind each choice: `docs/studies/missing_data.md`.
 
 # %%
 import os
@@ -102,9 +102,8 @@ if HAVE_DATA:
 
 # %% [markdown]
 # The points that stay visible are nearly as good as with complete data; the loss is in the
-# filled ones, and most of it in a few markers lost for most of the take together with
-# their skeleton neighbour (`docs/missing_data_scale.md`, "Where acceptance 1's overall e3d
-# goes").
+# filled ones, and most of it in a few markers lost for most of the take (the table
+# below lists each lost marker's seen frames and fill error).
 #
 # ## How far to trust a fill
 #

@@ -27,7 +27,6 @@ __all__ = ["TripletSearch", "corrective_triplets", "refine_triplet", "search_tri
            "triplet_cost", "triplet_residuals"]
 
 
-# ------------------------------------------------------------------------- refinement
 _EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)
 LAM0 = 1e-3      # initial LM damping, times max diag(J'J)
 
@@ -45,15 +44,13 @@ class _Frames:
         self.sqrt_w = None if weights is None else np.sqrt(self.w)
 
     def products(self, G):
-        """(a, b, |a|^2, |b|^2, a.b) per frame: ``a = m1 G``, ``b = m2 G`` (|a|^2 floored
-        at a tiny value)."""
+        """(a, b, |a|^2, |b|^2, a.b) per frame: ``a = m1 G``, ``b = m2 G``."""
         a, b = self.m1 @ G, self.m2 @ G
         na = np.maximum(np.einsum("fi,fi->f", a, a), _EPS)
         return a, b, na, np.einsum("fi,fi->f", b, b), np.einsum("fi,fi->f", a, b)
 
     def residuals(self, p):
-        """The 2F residuals ``[1 - |b|^2/|a|^2, 2 a.b/|a|^2]`` (times sqrt(w)) of products
-        ``p``."""
+        """The 2F residuals ``[1 - |b|^2/|a|^2, 2 a.b/|a|^2]`` (times sqrt(w))."""
         a, b, na, nb, ab = p
         r1, r2 = 1.0 - nb / na, 2.0 * ab / na
         if self.sqrt_w is not None:
@@ -63,12 +60,9 @@ class _Frames:
         return r
 
     def jacobian(self, p):
-        """The Jacobian (2F, 9K) of the residuals with respect to ``G.ravel()``.
-
-        d|a|^2/dG = 2 m1 a', d|b|^2/dG = 2 m2 b', d(a.b)/dG = m1 b' + m2 a', so frame f's
-        two rows are  J1 = m1 (c1 a)' + m2 (c2 b)'  and  J2 = m1 (c3 b + c4 a)' + m2 (c3 a)'
-        with c1 = 2|b|^2/|a|^4, c2 = -2/|a|^2, c3 = 2/|a|^2, c4 = -4 a.b/|a|^4: per frame,
-        [m1 m2] (3K x 2) times a 2 x 3 matrix per row, one batched matrix product."""
+        """The Jacobian (2F, 9K) of the residuals with respect to ``G.ravel()``: frame f's
+        rows ``m1 (c1 a)' + m2 (c2 b)'`` and ``m1 (c3 b + c4 a)' + m2 (c3 a)'`` with c1 =
+        2|b|^2/|a|^4, c2 = -2/|a|^2, c3 = 2/|a|^2, c4 = -4 a.b/|a|^4."""
         a, b, na, nb, ab = p
         F = a.shape[0]
         inv = 1.0 / na
@@ -82,9 +76,7 @@ class _Frames:
         return np.matmul(self.U, C).reshape(2 * F, self.m1.shape[1] * a.shape[1])
 
     def gradient(self, p):
-        """``J' r`` (3K, 3) without forming J: ``m1' A + m2' B`` with per-frame rows
-        ``A = r1 c1 a + r2 (c3 b + c4 a)``, ``B = r1 c2 b + r2 c3 a`` (the coefficients of
-        :meth:`jacobian`; w, not its square root, in the product)."""
+        """``J' r`` (3K, 3) without forming J (the coefficients of :meth:`jacobian`)."""
         a, b, na, nb, ab = p
         inv = 1.0 / na
         r1, r2 = 1.0 - nb * inv, 2.0 * ab * inv
@@ -97,21 +89,9 @@ class _Frames:
 
 
 def triplet_residuals(G, M_hat, weights=None, jac=False):
-    """Residuals of Dai's cost, ``[1 - |r2|^2/|r1|^2, 2 r1.r2/|r1|^2]`` per frame.
-
-    Parameters
-    ----------
-    G : (3K, 3) ndarray
-    M_hat : (2F, 3K) ndarray
-    weights : (F,) ndarray, optional
-        Per-frame weights (0 drops a frame; used for frame subsets).
-    jac : bool
-        Also return the Jacobian (2F, 9K) with respect to ``G.ravel()``.
-
-    Returns
-    -------
-    r : (2F,) ndarray, and J if ``jac``
-    """
+    """The residuals r (2F,) of Dai's cost, ``[1 - |r2|^2/|r1|^2, 2 r1.r2/|r1|^2]`` per
+    frame, of G (3K, 3) on M_hat (2F, 3K) with per-frame ``weights`` (F,), and with ``jac``
+    the Jacobian (2F, 9K) with respect to ``G.ravel()``."""
     frames = _Frames(M_hat, weights)
     p = frames.products(np.asarray(G, float))
     r = frames.residuals(p)
@@ -122,13 +102,6 @@ def triplet_cost(G, M_hat, weights=None):
     """Dai's cost ``sum_f (1 - |r2|^2/|r1|^2)^2 + 4 sum_f ((r1.r2)/|r1|^2)^2``."""
     r = triplet_residuals(G, M_hat, weights)
     return float(r @ r)
-
-
-def triplet_gradient(G, M_hat, weights=None):
-    """``J' r`` (half the gradient of Dai's cost), (3K, 3), without forming the Jacobian
-    (:meth:`_Frames.gradient`)."""
-    frames = _Frames(M_hat, weights)
-    return frames.gradient(frames.products(np.asarray(G, float)))
 
 
 def _normalise_triplet(G, M_hat):
@@ -148,17 +121,10 @@ def _damped_step(A, D, lam, grad):
 
 
 def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
-    """Levenberg-Marquardt on Dai's residuals (normal equations, Nielsen's damping rule).
-
-    ``reuse``: after an accepted step shorter than ``reuse`` times |G| that lowered the
-    cost by less than ``reuse`` of it, keep J'J and recompute only the gradient
-    (:meth:`_Frames.gradient`, a fifth of the time of the Jacobian and J'J): near a
-    minimum of nonzero cost J'J hardly changes, the steps stay Gauss-Newton steps to first
-    order and the iterate converges to the same point (the gradient is exact); where the
-    cost still falls fast (a zero-residual minimum, quadratic convergence) J'J is fresh.
-    The Jacobian of an accepted point is built from the products its cost was computed
-    from. Returns (G, cost, iterations). About 0.3 ms per iteration at pickup's size, ten
-    times faster than MINPACK through scipy (whose per-call overhead dominates).
+    """Levenberg-Marquardt on Dai's residuals (normal equations, Nielsen's damping rule):
+    (G, cost, iterations). ``reuse``: after an accepted step shorter than ``reuse`` |G| that
+    lowered the cost by less than ``reuse`` of it, J'J is kept and only the (exact) gradient
+    recomputed: near a minimum J'J hardly changes, and the iterate reaches the same point.
     """
     shape = G0.shape
     frames = _Frames(M, weights)
@@ -209,29 +175,15 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
 
 
 def refine_triplet(G0, M_hat, weights=None, max_iter=500, tol=1e-10, lam0=LAM0, reuse=None):
-    """Minimise Dai's cost over G (3K x 3) from ``G0`` by Levenberg-Marquardt on the 2F
-    residuals with the analytic Jacobian, stopped when the relative decrease of the cost is
-    below ``tol`` (tens of iterations, 20-100 ms on pickup).
-
-    Parameters
-    ----------
-    G0 : (3K, 3) ndarray
-    M_hat : (2F, 3K) ndarray
-    weights : (F,) ndarray, optional
-        Per-frame weights (0 drops a frame).
-    max_iter : int
-    tol : float
-    lam0 : float
-        Initial damping, times max diag(J'J) (:data:`LAM0` for cold starts; a start already
-        near a minimum can take a smaller one).
-    reuse : float or None
-        Keep J'J after small steps (near a minimum; see ``_levenberg_marquardt``).
+    """Minimise Dai's cost over G (3K, 3) from ``G0`` on M_hat (2F, 3K) by
+    Levenberg-Marquardt with the analytic Jacobian, until the relative decrease of the cost
+    is below ``tol``. ``weights`` (F,): per-frame weights (0 drops a frame); ``lam0``: the
+    initial damping times max diag(J'J); ``reuse``: see ``_levenberg_marquardt``.
 
     Returns
     -------
     G : (3K, 3) ndarray, normalised so that the rows of M_f G have RMS norm 1
     cost : float
-        Dai's cost at G.
     iterations : int
     """
     M = np.asarray(M_hat, float)
@@ -247,7 +199,6 @@ def refine_triplet(G0, M_hat, weights=None, max_iter=500, tol=1e-10, lam0=LAM0, 
     return G, triplet_cost(G, M, weights), nit
 
 
-# ------------------------------------------------------------------------- the search
 @dataclass
 class TripletSearch:
     """Output of :func:`search_triplet`: the distinct minima of Dai's cost it found.

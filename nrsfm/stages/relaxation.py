@@ -10,45 +10,18 @@ import math
 import numpy as np
 from scipy.linalg import blas, lapack
 
-__all__ = ["constraint_matrix", "gram_from_vech", "penalized_gram", "triplets_from_gram",
-           "vech_index"]
+__all__ = ["constraint_matrix", "penalized_gram", "triplets_from_gram", "vech_index"]
 
 
-# ----------------------------------------------------------------------------- constraints
 def vech_index(n):
     """Row and column indices (i <= j) of the upper triangle of an n x n matrix."""
     return np.triu_indices(n)
 
 
-def gram_from_vech(q, n):
-    """Symmetric n x n matrix from its upper triangle (vech order of :func:`vech_index`).
-
-    ``q`` may be (n(n+1)/2,) or (n(n+1)/2, m): the result is then (m, n, n).
-    """
-    q = np.asarray(q, float)
-    iu = vech_index(n)
-    if q.ndim == 1:
-        Q = np.zeros((n, n))
-        Q[iu] = q
-        return Q + np.triu(Q, 1).T
-    Q = np.zeros((q.shape[1], n, n))
-    Q[:, iu[0], iu[1]] = q.T
-    return Q + np.transpose(np.triu(Q, 1), (0, 2, 1))
-
-
 def constraint_matrix(M_hat):
-    """Dai's 2F linear equations on vech(Q) (vectorised over frames).
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-
-    Returns
-    -------
-    A : (2F, n(n+1)/2) ndarray, n = 3K
-        Row 2f: ``m_1 Q m_1' - m_2 Q m_2'``; row 2f+1: ``m_1 Q m_2'`` as linear functions of
-        the upper triangle of Q (off-diagonal entries counted twice where Q is symmetric).
-    """
+    """Dai's 2F linear equations on vech(Q): A (2F, n(n+1)/2) for M_hat (2F, n = 3K), rows
+    ``m_1 Q m_1' - m_2 Q m_2'`` and ``m_1 Q m_2'`` of each frame as functions of the upper
+    triangle of Q (off-diagonal entries counted twice)."""
     M = np.asarray(M_hat, float)
     F, n = M.shape[0] // 2, M.shape[1]
     m1, m2 = M[0::2], M[1::2]
@@ -63,9 +36,7 @@ def constraint_matrix(M_hat):
 
 
 def _cached(cache, key, make):
-    """``cache[key]``, made by ``make()`` on first use (no cache: made every time)."""
-    if cache is None:
-        return make()
+    """``cache[key]``, made by ``make()`` on first use."""
     if key not in cache:
         cache[key] = make()
     return cache[key]
@@ -87,78 +58,51 @@ def _solve(L, v):
     return blas.dtrsv(L, blas.dtrsv(L, v, lower=1), lower=1, trans=1)
 
 
-def _warm_start(cache, Z, U, rho):
-    """The previous penalty's ADMM state when cached (the problem is convex: the same
-    optimum, fewer iterations; pickup 195 -> 60), else the given start."""
-    if cache is None or "warm" not in cache:
-        return Z, U, rho
-    Zw, Uw, rw = cache["warm"]
-    return np.array(Zw, copy=True), np.array(Uw, copy=True), float(rw)
+def _frobenius(A):
+    """``||A||_F`` (as ``numpy.linalg.norm``, without its dispatch)."""
+    a = A.ravel()
+    return math.sqrt(a @ a)
 
 
-def penalized_gram(M_hat, K, lam=1e2, max_iter=3000, tol=1e-7, _cache=None):
-    """A convex relaxation that lands near the best triplet on the benchmark.
-
-    ``minimise  a trace(Q) + (lam / F) ||A vech(Q)||^2
-      s.t.  Q PSD,  <M'M, Q> = 2F``
-
-    with ``a = trace(M'M) / (2F 3K)`` (so that both terms are dimensionless). The
-    constraint residual of Dai's equations is penalised instead of imposed (the exact
-    intersection of the approximate null space with the PSD cone is empty on real data),
-    the normalisation fixes the mean squared camera scale ``mean_f |c_f|^2`` to 1, and the
-    trace (nuclear norm on the PSD cone) pushes the solution to low rank. Solved by ADMM
-    (:func:`_penalized_admm`): the 3K(3K+1)/2 square Gram matrix of the constraints up
-    front, the Cholesky factor of the x-update's system whenever the step size changes, then
-    two triangular solves and a 3K x 3K eigendecomposition per iteration.
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-    K : int
-    lam : float
-    max_iter, tol : int, float
-        The ADMM's iteration cap and relative residual tolerance.
-
-    Returns
-    -------
-    Q : (3K, 3K) ndarray, symmetric PSD
-    """
-    M = np.asarray(M_hat, float)
-    F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
-    A = _cached(_cache, "A", lambda: constraint_matrix(M))    # the same M for every lam
-    C = M.T @ M
-    a = np.trace(C) / (2.0 * F * n)
-    iu = vech_index(n)
-    dw = np.where(iu[0] == iu[1], 1.0, np.sqrt(2.0))      # vec_w(Q) = dw * vech(Q)
-    At = _cached(_cache, "At", lambda: A / dw)              # A vech(Q) = At vec_w(Q)
-    t = (iu[0] == iu[1]).astype(float)                     # trace(Q) = t . vec_w(Q)
-    c = C[iu] * dw                                         # <C, Q> = c . vec_w(Q)
-    return _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, _cache)
-
-
-#: over-relaxation of the ADMM's z-update (Boyd et al. 2011, sec. 3.4.3: 1.5 - 1.8 often
-#: converges faster)
+#: over-relaxation of the ADMM's z-update (Boyd et al. 2011, sec. 3.4.3)
 OVER_RELAXATION = 1.5
 #: the ADMM's first step size, times the trace weight ``a``
 RHO_START = 1.0 / 3.0
 
 
-def _frobenius(A):
-    """``||A||_F`` (as ``numpy.linalg.norm``, without its dispatch: 3 per ADMM iteration)."""
-    a = A.ravel()
-    return math.sqrt(a @ a)
+def penalized_gram(M_hat, K, lam=1e2, max_iter=3000, tol=1e-7, _cache=None):
+    """A convex relaxation that lands near the best triplet on the benchmark.
 
+    ``minimise  a trace(Q) + (lam / F) ||A vech(Q)||^2   s.t.  Q PSD,  <M'M, Q> = 2F``
 
-def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
-    """The relaxation by ADMM: the constraints' Gram matrix up front (cached), the Cholesky
-    factor of the x-update's system once per value of rho, a 3K x 3K eigendecomposition
-    per iteration (of the over-relaxed x, ``OVER_RELAXATION``), residual balancing from
-    ``rho = RHO_START a``."""
-    AtA = _cached(cache, "gram", lambda: At.T @ At)      # independent of the penalty
-    rho = a * RHO_START     # a: the trace's weight, the dual's scale
-    Z = np.eye(n) * (2.0 * F / np.trace(C))            # feasible, PSD start
-    U = np.zeros((n, n))
-    Z, U, rho = _warm_start(cache, Z, U, rho)
+    with ``a = trace(M'M) / (2F 3K)`` (both terms dimensionless). Dai's constraint residual
+    is penalised instead of imposed (their exact intersection with the PSD cone is empty on
+    real data), the mean squared camera scale is fixed to 1, and the trace pushes Q to low
+    rank. Solved by ADMM: the Cholesky factor of the x-update's system whenever the step
+    size changes (residual balancing from ``RHO_START a``), two triangular solves and a
+    3K x 3K eigendecomposition of the over-relaxed x per iteration. ``_cache`` (a dict)
+    carries the constraints and the last state from one penalty to the next (the same M).
+
+    Returns
+    -------
+    Q : (3K, 3K) ndarray, symmetric PSD
+    """
+    cache = {} if _cache is None else _cache
+    M = np.asarray(M_hat, float)
+    F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
+    A = _cached(cache, "A", lambda: constraint_matrix(M))     # the same M for every lam
+    C = M.T @ M
+    a = np.trace(C) / (2.0 * F * n)
+    iu = vech_index(n)
+    dw = np.where(iu[0] == iu[1], 1.0, np.sqrt(2.0))      # vec_w(Q) = dw * vech(Q)
+    At = _cached(cache, "At", lambda: A / dw)               # A vech(Q) = At vec_w(Q)
+    t = (iu[0] == iu[1]).astype(float)                     # trace(Q) = t . vec_w(Q)
+    c = C[iu] * dw                                         # <C, Q> = c . vec_w(Q)
+    AtA = _cached(cache, "gram", lambda: At.T @ At)        # independent of the penalty
+    if "warm" in cache:                  # the previous penalty's state: fewer iterations
+        Z, U, rho = np.array(cache["warm"][0]), np.array(cache["warm"][1]), cache["warm"][2]
+    else:                                # a feasible, PSD start; a: the dual's scale
+        Z, U, rho = np.eye(n) * (2.0 * F / np.trace(C)), np.zeros((n, n)), a * RHO_START
     upper = iu[0] * n + iu[1]                          # vech entries in Q.ravel()
     sym = np.empty(n * n, dtype=np.intp)               # Q.ravel() = vech(Q)[sym]
     sym[upper] = sym[iu[1] * n + iu[0]] = np.arange(upper.size)
@@ -191,10 +135,8 @@ def _penalized_admm(At, C, a, lam, F, n, iu, dw, t, c, max_iter, tol, cache):
                 rho /= 2.0
                 U *= 2.0
                 Hc = None
-    Q = 0.5 * (Z + Z.T)
-    if cache is not None:
-        cache["warm"] = (Z, U, rho)
-    return Q
+    cache["warm"] = (Z, U, rho)
+    return 0.5 * (Z + Z.T)
 
 
 def triplets_from_gram(Q):

@@ -20,23 +20,15 @@ DEGENERATE_CROSS = 1e-8
 DEGENERATE_ROW = 1e-12
 
 
-# --------------------------------------------------------------------------- lifting
 def rotations_from_triplets(M_hat, G, handedness=1):
-    """Per-triplet, per-frame rotations from ``M_f G^k``.
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-    G : (m, 3K, 3) or (3K, 3) ndarray
-    handedness : {1, -1}
-        -1 negates the third column of every 2 x 3 block before lifting.
+    """Per-triplet, per-frame rotations from ``M_f G^k``, for M_hat (2F, 3K) and G
+    (m, 3K, 3) or (3K, 3); ``handedness=-1`` negates the third column of every 2 x 3 block.
 
     Returns
     -------
     R : (m, F, 3, 3) ndarray in SO(3)
-        Rows scaled to unit length, ``r3 = r1 x r2``, projected onto SO(3). Never NaN: a
-        frame where ``M_f G`` is degenerate (a zero row or parallel rows) gets the
-        identity and ``valid`` False.
+        Rows scaled to unit length, ``r3 = r1 x r2``, projected onto SO(3); the identity
+        (and ``valid`` False) where ``M_f G`` is degenerate (a zero row, parallel rows).
     coefficients : (m, F) ndarray
         ``|c_fk|``: RMS norm of the two rows of ``M_f G^k``.
     valid : (m, F) bool
@@ -67,12 +59,9 @@ def rotations_from_triplets(M_hat, G, handedness=1):
 
 
 def _nearest_rotation(u1, u2):
-    """Nearest rotation to ``[u1; u2; u1 x u2]`` (unit rows u1, u2, not parallel), in
-    closed form: the rows of its polar factor are ``(e1 +- e2) / sqrt 2`` and their cross
-    product, with ``e1, e2`` the unit vectors along ``u1 + u2`` and ``u1 - u2`` (the
-    symmetric orthogonalisation of the two rows). The same matrix as
-    :func:`nrsfm.geometry.project_to_so3` of that 3 x 3 matrix (whose determinant is
-    ``|u1 x u2|^2 > 0``) to rounding, without a 3 x 3 SVD per frame."""
+    """Nearest rotation to ``[u1; u2; u1 x u2]`` (unit rows, not parallel) in closed form:
+    rows ``(e1 +- e2) / sqrt 2`` and their cross product, e1, e2 the unit vectors along
+    ``u1 + u2`` and ``u1 - u2`` (:func:`nrsfm.geometry.project_to_so3` without an SVD)."""
     p, q = u1 + u2, u1 - u2
     e1 = p / np.linalg.norm(p, axis=-1, keepdims=True)
     e2 = q / np.linalg.norm(q, axis=-1, keepdims=True)
@@ -80,7 +69,6 @@ def _nearest_rotation(u1, u2):
     return np.stack([r1, r2, np.cross(r1, r2)], axis=-2)
 
 
-# --------------------------------------------------------------------------- registration
 def _register_one(R_ref, R_k, w, max_iter=20):
     """Flip-aware registration of one triplet for one handedness: (R_reg, flips, cost)."""
     F = len(R_k)
@@ -109,27 +97,19 @@ def _register_one(R_ref, R_k, w, max_iter=20):
 
 
 def register_rotations(R_ref, R_k, weights=None, handedness="both"):
-    """Register one triplet's rotations onto the reference (Eq. 3, flip-aware).
+    """Register one triplet's rotations R_k (F, 3, 3) onto R_ref (Eq. 3, flip-aware).
 
     Minimises ``sum_f w_f || R_ref,f - s_f H(R_k,f) R_reg' ||_F^2`` over R_reg in SO(3),
-    per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"``, the
-    handedness ``H`` (identity, or ``R -> diag(1, 1, -1) R diag(1, 1, -1)``, the lift of
-    the mirrored 2 x 3 blocks). Closed-form SO(3) Procrustes started from the third rows,
-    then alternation between the flips and R_reg (converges in a few steps).
-
-    Parameters
-    ----------
-    R_ref, R_k : (F, 3, 3) ndarray
-    weights : (F,) ndarray, optional
-        0 leaves a frame out of the fit (its flip is still chosen).
-    handedness : {"both", "same"}
+    per-frame ``s_f`` in {I, diag(-1, -1, 1)} and, with ``handedness="both"`` (not
+    ``"same"``), the handedness H (identity or ``R -> MIRROR R MIRROR``): SO(3) Procrustes
+    from the third rows, then alternation between the flips and R_reg. A zero weight leaves
+    a frame out of the fit (its flip is still chosen).
 
     Returns
     -------
     registered : (F, 3, 3) ndarray
         ``s_f H(R_k,f) R_reg'``.
     R_reg : (3, 3) ndarray
-        In the sense of Eq. 3 (for the mirrored handedness, applied after the mirror).
     flips : (F,) bool
     mirrored : bool
     cost : float
@@ -149,24 +129,10 @@ def register_rotations(R_ref, R_k, weights=None, handedness="both"):
     return S @ R.T, R, flips, mirrored, cost
 
 
-# --------------------------------------------------------------------------- filtering
 def filter_rotations(registered, reference, delta=0.05, valid=None):
-    """Keep the samples within ``delta`` (geodesic angle, rad; paper: 0.05 = 2.9 degrees)
-    of the reference.
-
-    Parameters
-    ----------
-    registered : (m, F, 3, 3) ndarray
-    reference : (F, 3, 3) ndarray
-    delta : float
-    valid : (m, F) bool, optional
-        Samples already known to be unusable.
-
-    Returns
-    -------
-    kept : (m, F) bool
-    distance : (m, F) ndarray
-    """
+    """(kept, distance), each (m, F): the samples ``registered`` (m, F, 3, 3) within
+    ``delta`` (geodesic angle, rad; paper: 0.05) of ``reference`` (F, 3, 3), among the
+    ``valid`` ones (m, F) when given, and their angles."""
     dist = rotation_angle(registered, reference[None])
     kept = dist <= delta
     if valid is not None:
@@ -174,7 +140,6 @@ def filter_rotations(registered, reference, delta=0.05, valid=None):
     return kept, dist
 
 
-# --------------------------------------------------------------------------- depth sign
 def resolve_depth_signs(R):
     """Per-frame depth sign by motion smoothness (Dai's rule).
 
@@ -188,8 +153,6 @@ def resolve_depth_signs(R):
     flipped : (F,) bool, frames changed
     """
     R = np.array(R, float, copy=True)
-    F = len(R)
-    flipped = np.zeros(F, bool)
     # d_f = agreement of frame f with frame f-1 (unresolved); resolving sequentially only
     # needs the parity of the flips so far.
     d = np.einsum("fij,fij->f", R[1:, :2], R[:-1, :2])
@@ -197,6 +160,3 @@ def resolve_depth_signs(R):
     flipped = parity.astype(bool)
     R[flipped] = FLIP @ R[flipped]
     return R, flipped
-
-
-# --------------------------------------------------------------------------- windows

@@ -16,9 +16,7 @@ from .lifting import filter_rotations, register_rotations, resolve_depth_signs
 from .lifting import rotations_from_triplets
 from .subspace import determined_subspace, effective_K, lift_triplets
 
-__all__ = ["MIN_WINDOW_FRAMES", "RotationResult", "RotationSettings", "WINDOW_LM",
-           "estimate_rotations", "register_triplets", "triplets_on_subsets",
-           "window_weights"]
+__all__ = ["RotationResult", "RotationSettings", "estimate_rotations", "window_weights"]
 
 #: at least this many frames in a window triplet
 MIN_WINDOW_FRAMES = 8
@@ -30,7 +28,7 @@ WINDOW_LM = dict(lam0=1e-6, reuse=1e-3, tol=1e-11)
 
 @dataclass(frozen=True)
 class RotationSettings:
-    """Rotation stage settings (paper Sec. 3.1).
+    """Rotation stage settings (paper Sec. 3.1); a value out of range is a ValueError.
 
     Attributes
     ----------
@@ -41,14 +39,8 @@ class RotationSettings:
     max_iter, eps : int, float
         Weiszfeld iterations and step tolerance of the L1 average (Alg. 1).
     hits, max_starts : int
-        Stopping rule of the triplet search (:func:`nrsfm.stages.corrective.search_triplet`):
-        stop once the lowest cost has been reached by ``hits`` starts, or after
-        ``max_starts`` starts.
-
-    Raises
-    ------
-    ValueError
-        A value out of range (named in the message).
+        The triplet search stops once its lowest cost has been reached by ``hits`` starts,
+        or after ``max_starts`` (:func:`nrsfm.stages.corrective.search_triplet`).
     """
 
     window: float = 0.9
@@ -72,46 +64,36 @@ class RotationResult:
     """Output of :func:`estimate_rotations`: every intermediate of the rotation stage.
 
     ``m`` is the number of triplets: K for the averaged rotations, 1 for ``single=True``
-    (BMM); fewer where W has numerical rank r < 3K (:attr:`effective_K`).
+    (BMM), :attr:`effective_K` where W has numerical rank below 3K.
 
     Attributes
     ----------
     rotations : (F, 3, 3) ndarray
         Final per-frame rotations in SO(3) (depth sign resolved by smoothness).
-    G : (m, 3K, 3) ndarray
-        The triplets G^k: the best of the search, then the window triplets.
-    triplet_costs : (m,) ndarray
-        Dai's cost of each triplet on all frames.
+    G, triplet_costs : (m, 3K, 3), (m,) ndarray
+        The triplets G^k (the best of the search, then the window triplets) and Dai's cost
+        of each on all frames.
     search : TripletSearch
-        The triplet search that found ``G[0]`` (its minima, costs, starts, stopping rule).
+        The search that found ``G[0]``.
     window_spans : (m - 1, 2) int ndarray
         First and past-the-last frame of each window triplet's window.
-    per_triplet : (m, F, 3, 3) ndarray
-        Lifted rotations R^k before registration.
+    per_triplet, registered : (m, F, 3, 3) ndarray
+        The rotations R^k lifted from each triplet, and after registration (Eq. 3).
     coefficients : (m, F) ndarray
         ``|c_fk|``, the RMS norm of the rows of ``M_f G^k``.
-    registration : (m, 3, 3) ndarray
-        R_reg^k (Eq. 3; identity for k = 0).
-    flips : (m, F) bool ndarray
-        Frames whose sample was depth-reversed (``diag(-1, -1, 1)``) by the registration.
-    mirrored : (m,) bool ndarray
-        Triplets of the opposite handedness.
-    registered : (m, F, 3, 3) ndarray
-        The samples after registration.
-    filter_distance : (m, F) ndarray
-        Geodesic angle of each sample from the samples' L1 average.
-    kept : (m, F) bool ndarray
-        The samples within ``delta`` of it (at least the first triplet's in every frame).
-    averaged : (F, 3, 3) ndarray
-        The per-frame L1 average of the kept samples (before the depth-sign rule).
-    averaging_iterations : (F,) int ndarray
-        Weiszfeld iterations per frame.
+    registration, flips, mirrored : (m, 3, 3), (m, F) bool, (m,) bool ndarray
+        R_reg^k (identity for k = 0), the frames depth-reversed by the registration, the
+        triplets of the opposite handedness.
+    filter_distance, kept : (m, F) ndarray, (m, F) bool ndarray
+        Geodesic angle of each sample from the samples' L1 average; the samples within
+        ``delta`` of it (at least the first triplet's).
+    averaged, averaging_iterations : (F, 3, 3), (F,) int ndarray
+        The per-frame L1 average of the kept samples (Alg. 1) and its Weiszfeld iterations.
     sign_from_smoothness : (F,) bool ndarray
         Frames whose depth sign the motion-smoothness rule changed.
-    determined_rank : int
-        The numerical rank r of the motion factor (3K unless W is rank-deficient).
-    effective_K : int
-        The triplets the determined subspace can hold, ``min(K, max(1, r // 3))``.
+    determined_rank, effective_K : int
+        The numerical rank r of the motion factor; the triplets its determined subspace
+        holds, ``min(K, max(1, r // 3))``.
     timings : dict
         Seconds per step.
     """
@@ -142,15 +124,8 @@ class RotationResult:
 
 
 def window_weights(F, n_windows, window):
-    """Frame weights of ``n_windows`` contiguous temporal windows of ``window * F`` frames
-    (at least :data:`MIN_WINDOW_FRAMES`), starts spread evenly from the first to the last
-    possible frame.
-
-    Returns
-    -------
-    weights : list of (F,) ndarrays (1 inside the window)
-    spans : list of (start, stop)
-    """
+    """(weights, spans): the (F,) 0/1 weights and (start, stop) of ``n_windows`` temporal
+    windows of ``window * F`` frames (at least :data:`MIN_WINDOW_FRAMES`), spread evenly."""
     L = int(min(F, max(MIN_WINDOW_FRAMES, round(window * F))))
     starts = (np.round(np.linspace(0, F - L, n_windows)).astype(int) if n_windows > 1
               else np.array([0]))
@@ -164,32 +139,13 @@ def window_weights(F, n_windows, window):
 
 
 def triplets_on_subsets(M_hat, G0, weights):
-    """Triplets refined from ``G0`` on weighted subsets of the frames.
-
-    Parameters
-    ----------
-    M_hat : (2F, 3K) ndarray
-    G0 : (3K, 3) ndarray
-    weights : list of (F,) ndarrays
-        Frame weights of each subset (e.g. :func:`window_weights`).
-
-    Returns
-    -------
-    G : (n, 3K, 3) ndarray
-    """
+    """Triplets (n, 3K, 3) refined from ``G0`` on n frame subsets (their (F,) weights)."""
     return np.stack([refine_triplet(G0, M_hat, weights=w, **WINDOW_LM)[0] for w in weights])
 
 
 def register_triplets(per_triplet, valid):
-    """Register every triplet's rotations onto the first one's (Eq. 3).
-
-    Returns
-    -------
-    registered : (m, F, 3, 3) ndarray
-    registration : (m, 3, 3) ndarray
-    flips : (m, F) bool ndarray
-    mirrored : (m,) bool ndarray
-    """
+    """Every triplet's rotations registered onto the first one's (Eq. 3): registered
+    (m, F, 3, 3), registration (m, 3, 3), flips (m, F), mirrored (m,)."""
     m, F = per_triplet.shape[:2]
     registered = per_triplet.copy()
     registration = np.tile(np.eye(3), (m, 1, 1))
@@ -214,18 +170,12 @@ def _fill_empty(R, empty):
 def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progress=None):
     """Camera rotations from the rank-3K motion factor (paper Sec. 3.1).
 
-    1. The best corrective triplet of the search (:func:`corrective_triplets`) and K - 1
-       more refined from it on temporal windows (``single``: the best one only, Dai et
-       al.'s BMM).
-    2. Each triplet lifted to one rotation per frame, ``M_f G^k = c_fk R_f^k[:2]``.
-    3. Registration onto the first triplet's rotations (Eq. 3, with a per-frame depth
-       reversal and the triplet's handedness).
-    4. Filtering: the samples within ``delta`` of their L1 average.
-    5. The per-frame L1 average of the kept samples (Alg. 1).
-    6. The depth sign of each frame by motion smoothness.
-
-    W of numerical rank r < 3K: the steps run in the determined r-dimensional subspace of
-    M_hat with ``effective_K(r, K)`` triplets (:mod:`.subspace`), lifted back to 3K rows.
+    1. The best corrective triplet of the search and K - 1 more refined from it on temporal
+       windows (``single``: the best one only, Dai et al.'s BMM); 2. each lifted to one
+       rotation per frame, ``M_f G^k = c_fk R_f^k[:2]``; 3. registered onto the first's
+       (Eq. 3); 4. the samples within ``delta`` of their L1 average kept; 5. their
+       per-frame L1 average (Alg. 1); 6. each frame's depth sign by motion smoothness.
+       W of numerical rank r < 3K: in the determined subspace (:mod:`.subspace`).
 
     Parameters
     ----------

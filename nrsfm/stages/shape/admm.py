@@ -22,7 +22,8 @@ from typing import ClassVar, Optional
 import numpy as np
 
 from ...validation import check_integer, check_positive
-from ..measurement import WORKING_FROBENIUS, weighted_svt
+from ...linalg import weighted_svt
+from ..measurement import WORKING_FROBENIUS
 from .common import PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv
 from .common import truncate_rank
 
