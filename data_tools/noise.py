@@ -99,7 +99,7 @@ def drop_tracks(W, fraction, seed=0, pattern="uniform"):
         ``tracking``: a tracker losing a point; each track lost with probability
         ``fraction`` from a frame drawn uniformly in ``[2, F)`` to the end (every point
         keeps two frames; about ``fraction / 2`` of the entries go).
-        ``lost`` (lost to the end; issue 24's pattern at fraction 0.3, seed 31): the
+        ``lost`` (lost to the end; the benchmark's pattern at fraction 0.3, seed 31): the
         chosen tracks lost from a frame drawn uniformly in ``[ceil(F / 10), F)`` to the
         end (seen in the first tenth; about ``0.45 fraction`` of the entries go).
         ``late`` (late start): the chosen tracks seen only from a frame drawn uniformly in

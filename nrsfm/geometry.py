@@ -1,22 +1,10 @@
-"""Rotations and alignments used by every stage: one home for each.
-
-* :func:`project_to_so3`: the nearest rotation to a 3 x 3 matrix (also the SO(3)
-  Procrustes solution, ``argmax_{R in SO(3)} trace(R' N)`` = ``project_to_so3(N)``).
-* :func:`project_to_so3_batch`: the same map for many matrices at once (the fill's Kabsch
-  steps), in closed form.
-* :func:`procrustes_orthogonal`: the orthogonal (reflection allowed) Procrustes solution.
-* :func:`align_similarity`: per-frame similarity alignment of shapes (the e3d metric).
-* :func:`rotation_angle`: geodesic distance between rotations.
-* :func:`average_rotations`: per-frame L1 single rotation averaging (paper Alg. 1).
-"""
+"""Rotations and alignments used by every stage: one home for each (projection onto SO(3),
+Procrustes, the e3d alignment, geodesic angles, L1 rotation averaging of Alg. 1)."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-
-__all__ = ["align_similarity", "average_rotations", "centre_points", "procrustes_orthogonal", "procrustes_so3",
-           "project_to_so3", "project_to_so3_batch", "rotation_angle"]
 
 
 def project_to_so3(A):
@@ -56,14 +44,10 @@ def project_to_so3_batch(A, min_gap=1e-4, max_iter=30):
     (``t = ||A||_F^2``, ``e2`` the sum of the principal 2 x 2 minors), found by Newton's
     method from the upper bound ``sqrt(t + 2 sqrt(3 e2))``; then ``I2 = (I1^2 - t) / 2``.
     The denominator is ``(e_1 + e_2)(e_1 + e_3)(e_2 + e_3)``, zero where the rotation is not
-    unique. As it nears zero both the formula and the SVD lose digits as its inverse (the
-    rotation is that ill-determined), and below about 1e-6 ``I1^3`` the formula fails first;
-    so where it is below ``min_gap I1^3``, or Newton has not converged in ``max_iter``,
-    :func:`project_to_so3`'s SVD decides. One step of Newton's polar iteration,
-    ``R <- (R + R^-T) / 2``, makes R orthogonal to rounding. Agrees with the SVD to about
-    3e-13 where the rotation is well determined (``tests/test_rotations.py``; the
-    measurements in ``docs/missing_data_scale.md``). Runs over chunks of ``_CHUNK``
-    matrices (cache-sized); each matrix's answer is the same whatever else is passed.
+    unique; where it is below ``min_gap I1^3`` (the formula loses digits faster than the SVD)
+    or Newton has not converged in ``max_iter``, :func:`project_to_so3`'s SVD decides. One
+    step of Newton's polar iteration, ``R <- (R + R^-T) / 2``, makes R orthogonal to
+    rounding. Each matrix's answer is the same whatever else is passed.
 
     Parameters
     ----------
@@ -78,21 +62,14 @@ def project_to_so3_batch(A, min_gap=1e-4, max_iter=30):
     -------
     R : (n, 3, 3) ndarray
         Rotations, ``argmax_{R in SO(3)} trace(R' A_i)``.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> A = np.random.default_rng(0).standard_normal((1000, 3, 3))
-    >>> bool(np.allclose(project_to_so3_batch(A), project_to_so3(A), atol=1e-10))
-    True
     """
     A = np.asarray(A, float)
     flat = A.reshape(-1, 9)
     out = np.empty_like(flat)
     for s in range(0, flat.shape[0], _CHUNK):
-        part = flat[s:s + _CHUNK]
+        part = flat[s : s + _CHUNK]
         R, ok = _so3_closed_form(np.ascontiguousarray(part.T), min_gap, max_iter)
-        out[s:s + _CHUNK] = R.T
+        out[s : s + _CHUNK] = R.T
         if not ok.all():
             bad = s + np.flatnonzero(~ok)
             out[bad] = project_to_so3(flat[bad].reshape(-1, 3, 3)).reshape(-1, 9)
@@ -102,42 +79,42 @@ def project_to_so3_batch(A, min_gap=1e-4, max_iter=30):
 def _cofactor_rows(m):
     """(3, 3, n) cofactor matrices of the (3, 3, n) matrices m (row i: the cross product of
     the other two rows, in cyclic order)."""
-    return np.stack([np.cross(m[1], m[2], axis=0), np.cross(m[2], m[0], axis=0),
-                     np.cross(m[0], m[1], axis=0)])
+    return np.stack(
+        [np.cross(m[1], m[2], axis=0), np.cross(m[2], m[0], axis=0), np.cross(m[0], m[1], axis=0)]
+    )
 
 
 def _so3_closed_form(M, min_gap, max_iter):
     """(9, n) rotations of the (9, n) matrices M (row-major entries) by
     :func:`project_to_so3_batch`'s formula, and where it holds (n,) bool."""
     big = np.abs(M).max(axis=0)
-    M = M / np.where(big > 0, big, 1.0)                            # entries in [-1, 1]
+    M = M / np.where(big > 0, big, 1.0)  # entries in [-1, 1]
     m = M.reshape(3, 3, -1)
-    C = np.einsum("kin,kjn->ijn", m, m)                            # A' A
+    C = np.einsum("kin,kjn->ijn", m, m)  # A' A
     cof = _cofactor_rows(m)
     det = np.einsum("in,in->n", m[0], cof[0])
     t = C[0, 0] + C[1, 1] + C[2, 2]
-    e2 = (C[0, 0] * C[1, 1] - C[0, 1] ** 2 + C[0, 0] * C[2, 2] - C[0, 2] ** 2
-          + C[1, 1] * C[2, 2] - C[1, 2] ** 2)
+    e2 = C[0, 0] * C[1, 1] - C[0, 1] ** 2 + C[0, 0] * C[2, 2] - C[0, 2] ** 2
+    e2 = e2 + C[1, 1] * C[2, 2] - C[1, 2] ** 2  # the principal 2 x 2 minors of A'A
     c0 = t * t - 4.0 * e2
-    lam = np.sqrt(t + 2.0 * np.sqrt(np.maximum(3.0 * e2, 0.0)))   # >= I1 (Cauchy-Schwarz)
+    lam = np.sqrt(t + 2.0 * np.sqrt(np.maximum(3.0 * e2, 0.0)))  # >= I1 (Cauchy-Schwarz)
     done = np.zeros(lam.size, bool)
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(max_iter):
             l2 = lam * lam
-            step = ((l2 - 2.0 * t) * l2 - 8.0 * det * lam + c0) / (4.0 * lam * (l2 - t)
-                                                                    - 8.0 * det)
-            lam -= np.where(done, 0.0, step)                       # each stops on its own:
-            done |= np.abs(step) <= 1e-13 * lam                    # quadratic, then exact
+            step = ((l2 - 2.0 * t) * l2 - 8.0 * det * lam + c0) / (4.0 * lam * (l2 - t) - 8.0 * det)
+            lam -= np.where(done, 0.0, step)  # each stops on its own:
+            done |= np.abs(step) <= 1e-13 * lam  # quadratic, then exact
             if done.all():
                 break
         I2 = 0.5 * (lam * lam - t)
         den = lam * I2 - det
         AC = np.einsum("ikn,kjn->ijn", m, C)
         R = ((lam * lam - I2) * m + lam * cof - AC) / den
-        ok = done & (den > min_gap * lam ** 3) & (big > 0)
+        ok = done & (den > min_gap * lam**3) & (big > 0)
         cof = _cofactor_rows(R)
-        R += cof / np.einsum("in,in->n", R[0], cof[0])             # one polar Newton step:
-        R *= 0.5                                                   # orthogonal to rounding
+        R += cof / np.einsum("in,in->n", R[0], cof[0])  # one polar Newton step:
+        R *= 0.5  # orthogonal to rounding
     return R.reshape(9, -1), ok
 
 
@@ -174,18 +151,15 @@ def align_similarity(X_est, X_gt):
     A = centre_points(np.asarray(X_est, float))
     B = centre_points(np.asarray(X_gt, float))
     U, sig, Vt = np.linalg.svd(B @ A.transpose(0, 2, 1))
-    Q = U @ Vt                                      # orthogonal, reflection allowed
+    Q = U @ Vt  # orthogonal, reflection allowed
     norm2 = np.einsum("fij,fij->f", A, A)
     scale = np.where(norm2 > 0, sig.sum(axis=1) / np.where(norm2 > 0, norm2, 1.0), 0.0)
     return scale[:, None, None] * (Q @ A)
 
 
 def _median_start(samples, mask):
-    """Element-wise median of the kept samples, projected onto SO(3) (Lee & Civera).
-
-    The median of the n_f kept values per entry: the middle one of the sorted values, or
-    the mean of the two middle ones (``numpy.nanmedian``'s value, without its per-slice
-    overhead); a frame with no kept sample gets the identity."""
+    """Element-wise median of the kept samples (``numpy.nanmedian``'s value, faster),
+    projected onto SO(3) (Lee & Civera); the identity for a frame with no kept sample."""
     S = np.sort(np.where(mask[..., None, None], samples, np.inf), axis=0)
     n = mask.sum(axis=0)
     lo = np.maximum(n - 1, 0) // 2
@@ -200,12 +174,14 @@ def _log_so3(R):
     """Rotation vectors of rotations (..., 3, 3): ``theta u`` with ``theta =
     atan2(|s|, (tr R - 1) / 2)``, ``s = sin(theta) u`` the skew part (accurate at small
     angles); angles within 0.1 of pi (where the skew part loses the axis) by scipy."""
-    s = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                        R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    s = 0.5 * np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
     ns = np.linalg.norm(s, axis=-1)
     theta = np.arctan2(ns, 0.5 * (np.einsum("...ii->...", R) - 1.0))
     small = ns < 1e-8
-    factor = np.where(small, 1.0 + theta ** 2 / 6.0, theta / np.where(small, 1.0, ns))
+    factor = np.where(small, 1.0 + theta**2 / 6.0, theta / np.where(small, 1.0, ns))
     v = s * factor[..., None]
     far = theta > np.pi - 0.1
     if far.any():
@@ -213,8 +189,7 @@ def _log_so3(R):
     return v
 
 
-def average_rotations(samples, mask=None, weights=None, max_iter=50, eps=1e-3,
-                      return_info=False):
+def average_rotations(samples, mask=None, weights=None, max_iter=50, eps=1e-3, return_info=False):
     """L1 single rotation averaging per frame (Alg. 1), vectorised over frames.
 
     Start: element-wise median of the samples projected onto SO(3); then Weiszfeld steps
@@ -242,8 +217,8 @@ def average_rotations(samples, mask=None, weights=None, max_iter=50, eps=1e-3,
     empty = ~(w > 0).any(axis=0)
     R = _median_start(samples, w > 0)
     active = ~empty
-    flat = samples.transpose(1, 0, 2, 3).reshape(F * m, 3, 3)     # frame-major
-    wt = w.T                                                       # (F, m)
+    flat = samples.transpose(1, 0, 2, 3).reshape(F * m, 3, 3)  # frame-major
+    wt = w.T  # (F, m)
     iters = np.zeros(F, int)
     for it in range(max_iter):
         if not active.any():

@@ -1,18 +1,17 @@
-"""Error metrics of the MoCap benchmark (definitions in the paper, Sec. 4; see ``docs/decisions.md``).
+"""Error metrics of the MoCap benchmark (the paper, Sec. 4), three because the published
+tables mix them:
 
-Three metrics, because the published tables mix them:
-
-* :func:`e3d`: the organic-priors paper's metric. Per frame, a similarity Procrustes
-  alignment (rotation, reflection, scale) of the estimate onto the centred ground truth, then
-  ``||X_gt - aligned||_F / ||X_gt||_F``, averaged over frames.
-* :func:`e3d_akhter`: Akhter's / Dai's ``compareStructs``. Both shapes divided by
-  ``s = mean(std(X_gt))`` (std over points of every coordinate row, ddof 0), one global
-  3 x 3 orthogonal alignment for the whole sequence (reflection allowed, no scale), mean point
-  distance per frame, averaged over frames.
-* :func:`rotation_error`: ``e_R``. One global orthogonal alignment of the estimated cameras
-  onto the ground truth, then the spectral norm (largest singular value) of the 2 x 3
-  difference of the first two rows per frame, averaged over frames. The published BMM figures
-  use the spectral norm although the paper writes Frobenius.
+* :func:`e3d`, the paper's: per frame, a similarity Procrustes alignment (rotation,
+  reflection, scale) of the estimate onto the centred truth, then ``||X_gt - aligned||_F /
+  ||X_gt||_F``, averaged over frames.
+* :func:`e3d_akhter`, Akhter's / Dai's ``compareStructs``: both shapes divided by ``s =
+  mean(std(X_gt))`` (std over points, ddof 0), one global orthogonal alignment (no scale),
+  mean point distance per frame, averaged over frames.
+* :func:`rotation_error`, ``e_R``: one global orthogonal alignment of the cameras, then the
+  spectral norm of the 2 x 3 difference of the first two rows per frame, averaged (the
+  published BMM figures use the spectral norm although the paper writes Frobenius).
+* :func:`depth_amplification`: how far the cameras leave the depth of the deformation open
+  (read by the diagnostics, from the run alone).
 """
 
 from __future__ import annotations
@@ -23,9 +22,6 @@ from .geometry import align_similarity, centre_points, procrustes_orthogonal
 from .stages.measurement import power_of_two_scale
 from .validation import check_rotations, check_shapes
 
-__all__ = ["camera_alignment", "depth_amplification", "depth_sensitivity", "e3d", "e3d_akhter",
-           "rotation_error"]
-
 
 def e3d(X_est, X_gt, per_frame=False):
     """The paper's normalised 3D error (per-frame similarity Procrustes).
@@ -33,7 +29,7 @@ def e3d(X_est, X_gt, per_frame=False):
     Parameters
     ----------
     X_est, X_gt : (F, 3, P) ndarray
-        Estimated and ground-truth shapes, any per-frame translation, scale, rotation or
+        Estimated and ground-truth shapes; a per-frame translation, scale, rotation or
         reflection of ``X_est`` is factored out.
     per_frame : bool
         Return the (F,) per-frame errors instead of their mean.
@@ -42,10 +38,7 @@ def e3d(X_est, X_gt, per_frame=False):
     -------
     float or (F,) ndarray
     """
-    X_est = check_shapes(X_est, "X_est")
-    X_gt = check_shapes(X_gt, "X_gt")
-    if X_est.shape != X_gt.shape:
-        raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
+    X_est, X_gt = _pair(X_est, X_gt)
     # e3d ignores the scale of either input: bring both to max|X| in [1, 2) (exact).
     X_est = X_est / power_of_two_scale(X_est)
     X_gt = X_gt / power_of_two_scale(X_gt)
@@ -69,11 +62,8 @@ def e3d_akhter(X_est, X_gt, per_frame=False):
     float or (F,) ndarray
         In units of ``s = mean(std(X_gt))``.
     """
-    X_est = check_shapes(X_est, "X_est")
-    X_gt = check_shapes(X_gt, "X_gt")
-    if X_est.shape != X_gt.shape:
-        raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
-    p2 = power_of_two_scale(X_gt)       # a common exact rescaling changes nothing
+    X_est, X_gt = _pair(X_est, X_gt)
+    p2 = power_of_two_scale(X_gt)  # a common exact rescaling changes nothing
     B = centre_points(X_gt / p2)
     A = centre_points(X_est / p2)
     s = np.mean(np.std(B, axis=2))
@@ -82,6 +72,14 @@ def e3d_akhter(X_est, X_gt, per_frame=False):
     A = procrustes_orthogonal(np.einsum("fip,fjp->ij", B, A)) @ A
     err = np.linalg.norm(B - A, axis=1).mean(axis=1)
     return err if per_frame else float(err.mean())
+
+
+def _pair(X_est, X_gt):
+    """The two (F, 3, P) shape arrays, checked to match."""
+    X_est, X_gt = check_shapes(X_est, "X_est"), check_shapes(X_gt, "X_gt")
+    if X_est.shape != X_gt.shape:
+        raise ValueError(f"X_est has shape {X_est.shape} but X_gt has shape {X_gt.shape}")
+    return X_est, X_gt
 
 
 def camera_alignment(R_est, R_gt):
@@ -125,29 +123,27 @@ def rotation_error(R_est, R_gt, per_frame=False):
     return err if per_frame else float(err.mean())
 
 
-#: modes of the shapes below ``MODE_RTOL`` times the first (singular values of X#) carry no
-#: energy and are left out of :func:`depth_amplification`
+#: modes below ``MODE_RTOL`` times the first (singular values of X#) are left out
 MODE_RTOL = 1e-6
 
 
 def _mode_factors(X, K):
     """Whitened coefficients ``C`` (F, k), ``C'C = F I``, and bases ``B`` (k, 3, P) of the
     rank-K part of the centred shapes, ``X_f ~ sum_k C_fk B_k``, k <= K the modes above
-    ``MODE_RTOL``. By the eigenvectors of the smaller Gram matrix of X# (F x 3P), so that
-    dense shapes cost little."""
+    ``MODE_RTOL`` (from the smaller Gram matrix of X#, F x 3P)."""
     F, _, P = X.shape
     Xs = (X - X.mean(axis=2, keepdims=True)).reshape(F, 3 * P)
     small = F <= 3 * P
     lam, E = np.linalg.eigh(Xs @ Xs.T if small else Xs.T @ Xs)
     lam, E = lam[::-1], E[:, ::-1]
     # modes of no energy (shapes of rank below K) have arbitrary coefficients: left out
-    K = int(np.sum(lam[:min(K, F, 3 * P)] > MODE_RTOL ** 2 * lam[0])) if lam[0] > 0 else 0
+    K = int(np.sum(lam[: min(K, F, 3 * P)] > MODE_RTOL**2 * lam[0])) if lam[0] > 0 else 0
     if small:
         C = E[:, :K] * np.sqrt(F)
         B = (C.T @ Xs) / F
     else:
-        B = E[:, :K].T                               # unit bases, then their scale
-        A = Xs @ B.T                                 # (F, K) = U S
+        B = E[:, :K].T  # unit bases, then their scale
+        A = Xs @ B.T  # (F, K) = U S
         norms = np.linalg.norm(A, axis=0)
         C = A / np.maximum(norms, 1e-300) * np.sqrt(F)
         B = B * (norms / np.sqrt(F))[:, None]
@@ -172,9 +168,7 @@ def depth_amplification(R, X, K):
         ``amplification = sum_k e_k tr(M^-1)_kk / 4.5``
 
     It uses the modes' energy, not the shapes' depth, so shapes that came out flat where
-    the depth is not seen still read as undetermined. Measured on re-projected MoCap and
-    ``back`` with every camera path of ``data_tools.validation_set`` at noise 0 - 5 %
-    (``docs/rotation_stage.md``, section 9).
+    the depth is not seen still read as undetermined.
 
     Parameters
     ----------
@@ -190,16 +184,6 @@ def depth_amplification(R, X, K):
     float
         ``inf`` where a direction of a mode is seen by no camera (a static camera);
         ``nan`` for shapes that are all zero.
-
-    Examples
-    --------
-    >>> import data_tools
-    >>> seq = data_tools.make_synthetic(F=200, P=30, K=2, motion="random", seed=1)
-    >>> round(depth_amplification(seq.rotations, seq.shapes, 2), 1)
-    1.1
-    >>> import numpy as np
-    >>> depth_amplification(np.broadcast_to(np.eye(3), (200, 3, 3)), seq.shapes, 2)
-    inf
     """
     R = check_rotations(R, "R", allow_orthographic=True)[:, :2]
     X = check_shapes(X, "X", R.shape[0])
@@ -215,36 +199,3 @@ def depth_amplification(R, X, K):
         return float("inf")
     blocks = np.einsum("ai,i,ai->a", V, 1.0 / lam, V).reshape(k, 3).sum(axis=1)
     return float(np.sum(energy * blocks) / np.sum(energy) / 4.5)
-
-
-def depth_sensitivity(R_a, R_b, X_a, X_b):
-    """How much the shapes move per unit of rotation change between two reconstructions.
-
-    ``e3d(X_b, X_a) / e_R(R_a, R_b)`` (per-frame similarity alignment of the shapes, one
-    global alignment of the rotations). Where the camera motion determines depth, two
-    nearby rotation estimates give nearly the same shapes (original cameras: pickup
-    0.0021 / 0.0227 = 0.09, stretch 0.018 / 0.046 = 0.38); where it does not, the shapes
-    follow the rotations (the same shapes re-projected by a camera turning 62 degrees:
-    pickup 0.062 / 0.030 = 2.1, stretch 0.36 / 0.072 = 5.0; e3d 0.18 and 0.25 even with
-    the exact rotations). Measured with the family-combined rotations as ``R_a`` and the
-    best single triplet's as ``R_b``. The pipeline no longer records it (it overlapped
-    between good and bad runs under noise; the diagnostics read
-    :func:`depth_amplification`).
-
-    Parameters
-    ----------
-    R_a, R_b : (F, 3, 3) ndarray
-    X_a, X_b : (F, 3, P) ndarray
-        The shapes solved with ``R_a`` and ``R_b``.
-
-    Returns
-    -------
-    dict or None
-        ``shape_change``, ``rotation_change``, ``ratio``; None for identical rotations.
-    """
-    dR = rotation_error(R_a, R_b)
-    dX = e3d(X_b, X_a)
-    if not dR > 1e-12:
-        return None
-    return dict(shape_change=float(dX), rotation_change=float(dR), ratio=float(dX / dR))
-

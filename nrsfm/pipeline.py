@@ -24,10 +24,9 @@ from .metrics import depth_amplification
 from .settings import KEYWORDS, METHODS, Settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import SPREAD_MAX, fill_unseen
-from .linalg import power_of_two_scale
-from .stages.measurement import Factorization, measure
+from .stages.measurement import Factorization, measure, power_of_two_scale
 from .stages.rotations import RotationResult, estimate_rotations
-from .stages.shape import ShapeResult, solve_pseudo_inverse, solve_shape
+from .stages.shape import ShapeResult, solve_pseudo_inverse
 from .validation import blas_threads, check_problem
 
 __all__ = ["METHODS", "Reconstruction", "reconstruct"]
@@ -45,7 +44,7 @@ class Reconstruction:
         3D shape X_f per frame in the world frame of the recovered cameras, in the input's
         units: ``rotations[f, :2] @ shapes[f]`` approximates the centred ``W_f`` (the
         factorisation's X, as in BMM). :attr:`camera_shapes` gives ``R_f X_f``.
-    method, K : str, int
+    K : int
     W : (2F, P) ndarray
         The row-centred input, in the input's units.
     row_means : (2F,) ndarray
@@ -69,15 +68,10 @@ class Reconstruction:
         Seconds per stage.
     diagnostics : nrsfm.diagnostics.Diagnostics or None
         Measured quality signals and the flags raised (see :mod:`nrsfm.diagnostics`).
-    observed : (F, P) bool ndarray or None
-        Where the input had missing observations: True where a point was observed in a
-        frame (None for complete input).
-    W_completed : (2F, P) ndarray or None
-        Where the input had missing observations: the completed W (input units, before
-        centring) that the pipeline ran on.
     completion : nrsfm.stages.completion.Completion or None
-        Where the input had missing observations: the completion stage's result
-        (:func:`nrsfm.stages.completion.complete`: the method that ran, lags, iterations).
+        Where the input had missing observations: the completion stage's result (the
+        completed W in the input's units, the ``observed`` mask, the method, lags,
+        iterations; :attr:`observed`, :attr:`W_completed`).
     fill_spread : (P,) ndarray or None
         Where the :attr:`undetermined` points were filled from their neighbours
         (``MeasurementSettings.fill = "neighbours"``;
@@ -89,7 +83,6 @@ class Reconstruction:
 
     rotations: np.ndarray
     shapes: np.ndarray
-    method: str
     K: int
     W: np.ndarray
     row_means: np.ndarray
@@ -102,10 +95,22 @@ class Reconstruction:
     shape_stage: ShapeResult = None
     timings: dict = field(default_factory=dict)
     diagnostics: object = None
-    observed: np.ndarray = None
-    W_completed: np.ndarray = None
     completion: object = None
     fill_spread: np.ndarray = None
+
+    @property
+    def method(self):
+        return self.settings.method
+
+    @property
+    def observed(self):
+        """(F, P) bool or None: True where a point was observed (None for complete input)."""
+        return None if self.completion is None else self.completion.observed
+
+    @property
+    def W_completed(self):
+        """(2F, P) or None: the completed W (input units, before centring) that ran."""
+        return None if self.completion is None else self.completion.W
 
     @cached_property
     def fill_gain(self):
@@ -333,10 +338,11 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
                     fact.M_hat, K, settings.rotation, single=METHODS[settings.method].single,
                     seed=seed, progress=say)
             rotations = rotation_stage.rotations
-        with _timed(timings, "shape"):
-            shape_stage = (solve_pseudo_inverse(meas.Wn, rotations, K) if settings.shape is None
-                           else solve_shape(meas.Wn, rotations, K, settings.prior,
-                                            settings.shape, say))
+        with _timed(timings, "shape"):                # the settings' solver, or none
+            if settings.shape is None:
+                shape_stage = solve_pseudo_inverse(meas.Wn, rotations, K)
+            else:
+                shape_stage = settings.shape.solve(meas.Wn, rotations, K, settings.prior, say)
     amp = (depth_amplification(rotations, shape_stage.shapes, K)
            if settings.shape is not None else None)
     diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
@@ -351,14 +357,12 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
         with _timed(timings, "fill"):
             undetermined = fill_gain(fact.M_hat, completion.observed) > MAX_GAIN
             shapes, spread = fill_unseen(shapes, completion.observed, undetermined)
-    return Reconstruction(rotations=rotations, shapes=shapes, method=settings.method, K=K,
-                          W=meas.W, row_means=meas.row_means, scale=meas.scale,
-                          factorization=fact, X_init=meas.restore(shape_stage.X_init),
-                          settings=settings, seed=seed, rotation_stage=rotation_stage,
-                          shape_stage=shape_stage, timings=timings, diagnostics=diagnostics,
-                          observed=None if completion is None else completion.observed,
-                          W_completed=None if completion is None else completion.W,
-                          completion=completion, fill_spread=spread)
+    return Reconstruction(rotations=rotations, shapes=shapes, K=K, W=meas.W,
+                          row_means=meas.row_means, scale=meas.scale, factorization=fact,
+                          X_init=meas.restore(shape_stage.X_init), settings=settings,
+                          seed=seed, rotation_stage=rotation_stage, shape_stage=shape_stage,
+                          timings=timings, diagnostics=diagnostics, completion=completion,
+                          fill_spread=spread)
 
 
 def _settings(settings, **keywords):

@@ -8,8 +8,8 @@ import numpy as np
 
 
 def _finite(A, name):
-    if not np.all(np.isfinite(A)):
-        bad = int(np.size(A) - np.count_nonzero(np.isfinite(A)))
+    bad = int(np.size(A) - np.count_nonzero(np.isfinite(A)))
+    if bad:
         raise ValueError(f"{name} contains {bad} NaN or infinite entries")
 
 
@@ -32,9 +32,8 @@ def check_measurements(W, name="W", allow_missing=False):
     Raises
     ------
     ValueError
-        Wrong number of dimensions, an odd number of rows, fewer than 2 frames or
-        3 points, or infinite entries (and NaN entries unless ``allow_missing``); the
-        message counts the NaN and the infinite entries apart.
+        Wrong shape, fewer than 2 frames or 3 points, infinite entries, or NaN entries
+        unless ``allow_missing`` (counted apart).
     """
     if allow_missing and isinstance(W, np.ma.MaskedArray):
         A = np.ma.filled(W.astype(float), np.nan)
@@ -58,17 +57,13 @@ def check_measurements(W, name="W", allow_missing=False):
 
 
 def _measurement_values(A, name, allow_missing):
-    """Infinite entries are refused; NaN entries too unless they mark missing data. The
-    message counts each kind, so an infinite entry is never called NaN (or the reverse)."""
-    n_inf = int(np.count_nonzero(np.isinf(A)))
+    """Infinite entries are refused; NaN entries too unless they mark missing data."""
     n_nan = 0 if allow_missing else int(np.count_nonzero(np.isnan(A)))
-    if not (n_inf or n_nan):
-        return
-    parts = [f"{n} {kind} entr{'y' if n == 1 else 'ies'}"
-             for n, kind in ((n_nan, "NaN"), (n_inf, "infinite")) if n]
-    note = (" (NaN marks a missing observation; an infinite value is an error)"
-            if allow_missing else "")
-    raise ValueError(f"{name} contains {' and '.join(parts)}{note}")
+    counts = {"NaN": n_nan, "infinite": int(np.count_nonzero(np.isinf(A)))}
+    parts = [f"{n} {kind} entr{'y' if n == 1 else 'ies'}" for kind, n in counts.items() if n]
+    if parts:
+        note = " (NaN marks a missing observation; an infinite value is an error)"
+        raise ValueError(f"{name} contains {' and '.join(parts)}{note if allow_missing else ''}")
 
 
 def check_integer(value, name, minimum=None):
@@ -92,19 +87,17 @@ def check_positive(name, value, strict=True):
     (``value < 0`` when not ``strict``)."""
     ok = np.isfinite(value) and (value > 0 if strict else value >= 0)
     if not ok:
-        raise ValueError(f"{name} must be {'positive' if strict else 'non-negative'} "
-                         f"and finite; got {value!r}")
+        raise ValueError(
+            f"{name} must be {'positive' if strict else 'non-negative'} and finite; got {value!r}"
+        )
     return float(value)
 
 
 def check_K(K, F, P):
     """Check the number of shape bases: ``1 <= K`` and ``3K <= min(2F, P - 1)``.
 
-    The one bound of the package. ``reconstruct`` centres the rows of W, which makes its
-    columns sum to zero: a row-centred W of 2F rows and P points has rank at most
-    ``min(2F, P - 1)``, so a rank-3K factorisation with ``3K = P`` is not determined (its
-    last component is rounding noise). The solvers take centred W, so the same bound holds
-    for them.
+    The one bound of the package: a row-centred W of 2F rows and P points has rank at most
+    ``min(2F, P - 1)``, so a rank-3K factorisation with ``3K = P`` is not determined.
 
     Raises
     ------
@@ -116,7 +109,8 @@ def check_K(K, F, P):
     if 3 * K > bound:
         raise ValueError(
             f"K={K} is too large for the data: a row-centred W of {2 * F} rows and {P} "
-            f"points has rank at most min(2F, P - 1) = {bound}, below 3K = {3 * K}")
+            f"points has rank at most min(2F, P - 1) = {bound}, below 3K = {3 * K}"
+        )
     return K
 
 
@@ -179,17 +173,9 @@ def blas_threads(n=1):
 
 def check_choice(name, value, allowed):
     """``value`` if it is one of ``allowed`` (a tuple or the keys of a dict); ValueError
-    naming the value and the choices otherwise. Every choice list of the package is
-    written once and read here, by the docstrings and by the CLI."""
+    naming the value and the choices otherwise."""
     if value not in tuple(allowed):
         raise ValueError(f"{name} must be one of {list(allowed)}; got {value!r}")
-    return value
-
-
-def check_flag(name, value):
-    """``value`` if it is a bool; ValueError otherwise."""
-    if not isinstance(value, bool):
-        raise ValueError(f"{name} must be True or False; got {value!r}")
     return value
 
 
@@ -221,9 +207,10 @@ def check_problem(W, K, rotations=None, missing="complete"):
     missing_entries = np.isnan(W)
     if missing_entries.any() and missing == "error":
         n_miss = int(missing_entries.reshape(F, 2, P).any(axis=1).sum())
-        raise ValueError(f"W has {n_miss} missing (frame, point) observations (NaN or "
-                         f"masked) and missing='error'; use missing='complete' to "
-                         f"fill them by low-rank completion")
+        raise ValueError(
+            f"W has {n_miss} missing (frame, point) observations (NaN or masked) and missing="
+            "'error'; use missing='complete' to fill them by low-rank completion"
+        )
     K = check_K(K, F, P)
     if rotations is not None:
         rotations = check_rotations(rotations, "rotations", n_frames=F)

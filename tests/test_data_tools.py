@@ -160,7 +160,7 @@ def test_track_patterns_honour_the_fraction_their_shape_and_the_seed(pattern):
 
 
 def test_lost_pattern_is_about_fifteen_percent_of_the_entries():
-    """Issue 24's pattern: 30% of the tracks lost after the first tenth, ~15% of the
+    """The lost-tracks pattern: 30% of the tracks lost after the first tenth, ~15% of the
     entries (0.3 x the mean lost share 0.45 = 0.135, plus the draw's spread)."""
     W = np.zeros((2 * 300, 41))
     _, mask = dt.drop_tracks(W, 0.3, seed=31, pattern="lost")

@@ -43,17 +43,21 @@ def _run(W, K, **kw):
 
 
 def test_three_K_above_centred_rank_is_value_error_naming_both():
-    W = np.random.default_rng(0).standard_normal((20, 3))      # K = 1, P = 3: rank <= 2
+    W = np.random.default_rng(0).standard_normal((20, 3))  # K = 1, P = 3: rank <= 2
     with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 2, below 3K = 3"):
         nrsfm.reconstruct(W, 1)
 
 
 def test_planar_object_rank_deficient_warns_with_rank():
-    res, caught = _run(_planar(), 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=6)))
+    res, caught = _run(
+        _planar(), 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=6))
+    )
     assert len(caught) == 1
     msg = str(caught[0].message)
-    assert msg.startswith("unreliable reconstruction: W-rank-deficient: W has only 4 "
-                           "independent directions where the model with K = 2 needs 3K = 6")
+    assert msg.startswith(
+        "unreliable reconstruction: W-rank-deficient: W has only 4 "
+        "independent directions where the model with K = 2 needs 3K = 6"
+    )
     assert res.diagnostics.signals["numerical_rank"] == 4
     assert res.diagnostics.flagged
 
@@ -66,8 +70,10 @@ def test_static_camera_warns():
 
 
 def test_transposed_input_warns():
-    seq = data_tools.make_synthetic(F=60, P=30, K=2, seed=1)     # W is 120 x 30
-    res, caught = _run(seq.W.T, 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=8)))  # read as 15 x 120
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, seed=1)  # W is 120 x 30
+    res, caught = _run(
+        seq.W.T, 2, settings=nrsfm.Settings(rotation=RotationSettings(max_starts=8))
+    )  # read as 15 x 120
     assert len(caught) == 1
     msg = str(caught[0].message)
     assert "looks transposed" in msg and "W.T" in msg
@@ -83,8 +89,15 @@ def test_clean_and_mildly_noisy_inputs_do_not_warn(noise):
     d = res.diagnostics
     assert not d.flagged and d.signals["triplet_hits"] >= 2
     assert d.signals["triplet_cost_ratio"] < D.COST_RATIO_MAX
-    for name in ("numerical_rank", "rank_gap", "condition", "triplet_cost_ratio",
-                 "kept_fraction", "smoothness_sign_fraction", "camera_spread_deg"):
+    for name in (
+        "numerical_rank",
+        "rank_gap",
+        "condition",
+        "triplet_cost_ratio",
+        "kept_fraction",
+        "smoothness_sign_fraction",
+        "camera_spread_deg",
+    ):
         assert name in d.signals and name in d.thresholds
 
 
@@ -135,10 +148,10 @@ def test_warning_class_and_report(tmp_path, capsys):
     from nrsfm.cli import main
 
     with warnings.catch_warnings():
-        warnings.simplefilter("error", nrsfm.NRSfMWarning)   # the CLI prints, not warns
+        warnings.simplefilter("error", nrsfm.NRSfMWarning)  # the CLI prints, not warns
         main(["run", str(path), "-o", str(tmp_path / "out.npz"), "--quiet"])
     out, err = capsys.readouterr()
-    assert err == "", err                   # no other warning (the flag is in the report)
+    assert err == "", err  # no other warning (the flag is in the report)
     assert "WARNING: W-rank-deficient: W has only 4 independent directions" in out
 
 

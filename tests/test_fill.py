@@ -1,4 +1,4 @@
-"""The fill of the points not seen from their neighbours (nrsfm.stages.fill, issue 24)."""
+"""The fill of the points not seen from their neighbours (nrsfm.stages.fill)."""
 
 import numpy as np
 import pytest
@@ -32,15 +32,15 @@ def _rigid_parts(F=30, parts=3, size=8, seed=0):
 def test_rigid_parts_are_filled_exactly_whatever_the_model_says():
     X = _rigid_parts()
     obs = np.ones((X.shape[0], X.shape[2]), bool)
-    obs[12:, 3] = False                     # lost to the end
-    obs[:9, 10] = False                     # late start
-    obs[5:20, 17] = False                   # a block
+    obs[12:, 3] = False  # lost to the end
+    obs[:9, 10] = False  # late start
+    obs[5:20, 17] = False  # a block
     model = X.copy()
-    model[~np.broadcast_to(obs[:, None, :], X.shape)] = 0.0      # a wrong model fill
+    model[~np.broadcast_to(obs[:, None, :], X.shape)] = 0.0  # a wrong model fill
     filled, spread = fill_unseen(model, obs)
     # rigid and template fills are exact; the median is off by the affine ridge's bias
     err = np.linalg.norm(filled - X, axis=1)
-    assert err.max() < 1e-2                 # bodies 20 apart, of radius ~1.7
+    assert err.max() < 1e-2  # bodies 20 apart, of radius ~1.7
     assert np.all(spread[[3, 10, 17]] < 1e-2)
     assert np.isnan(np.delete(spread, [3, 10, 17])).all()
     only, spread = fill_unseen(model, obs, points=np.arange(X.shape[2]) == 3)
@@ -59,29 +59,30 @@ def test_fill_checks_the_mask():
 def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
     W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
-    res = nrsfm.reconstruct(W, 2)                   # the default: fill="neighbours"
-    model = nrsfm.reconstruct(W, 2, settings=Settings(
-        measurement=MeasurementSettings(fill="model")))     # the shape stage's fill
+    res = nrsfm.reconstruct(W, 2)  # the default: fill="neighbours"
+    model = nrsfm.reconstruct(
+        W, 2, settings=Settings(measurement=MeasurementSettings(fill="model"))
+    )  # the shape stage's fill
     assert res.settings.measurement.fill == "neighbours"
     assert model.fill_spread is None and "fill" in res.timings
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[seen], model.shapes[seen])
     assert not np.allclose(res.shapes[~seen], model.shapes[~seen])
-    filled = res.undetermined                       # the points the data leave undetermined
+    filled = res.undetermined  # the points the data leave undetermined
     assert filled.any()
     assert np.isfinite(res.fill_spread[filled]).all()
     assert np.isnan(res.fill_spread[~filled]).all()
     kept = np.broadcast_to(~filled[None, None, :], res.shapes.shape)
     np.testing.assert_array_equal(res.shapes[kept], model.shapes[kept])
     from nrsfm.stages.fill import SPREAD_MAX
+
     np.testing.assert_array_equal(res.unreliable, filled & (res.fill_spread > SPREAD_MAX))
-    np.testing.assert_array_equal(model.unreliable, model.undetermined)   # no spread: all
+    np.testing.assert_array_equal(model.unreliable, model.undetermined)  # no spread: all
     complete = nrsfm.reconstruct(seq.W, 2)
     assert complete.fill_spread is None and not complete.unreliable.any()
 
 
 # the definition: the per-point loop the batched fill replaced (kept here to test it)
-
 
 
 def _ref_kabsch(A, B):
@@ -101,19 +102,19 @@ def _ref_candidates(X, observed, p):
     points nearest to p in each of them."""
     seen = np.flatnonzero(observed[:, p])
     sample = seen[np.linspace(0, seen.size - 1, min(fill._SAMPLE, seen.size)).astype(int)]
-    d = np.linalg.norm(X[sample] - X[sample][:, :, p:p + 1], axis=1)
+    d = np.linalg.norm(X[sample] - X[sample][:, :, p : p + 1], axis=1)
     near = set()
     for i, f in enumerate(sample):
         ids = np.flatnonzero(observed[f])
-        near.update(ids[np.argsort(d[i, ids], kind="stable")[:fill._POOL + 1]].tolist())
+        near.update(ids[np.argsort(d[i, ids], kind="stable")[: fill._POOL + 1]].tolist())
     near = np.array(sorted(near - {p}), int)
     both = observed[sample][:, near]
     coarse = np.where(both, d[:, near], 0).sum(0) / np.maximum(both.sum(0), 1)
     coarse[both.sum(0) == 0] = np.inf
-    first = np.argsort(coarse, kind="stable")[:fill._POOL]
+    first = np.argsort(coarse, kind="stable")[: fill._POOL]
     pool = near[first[np.isfinite(coarse[first])]]
     both = observed[seen][:, pool]
-    d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p:p + 1], axis=1)
+    d = np.linalg.norm(X[seen][:, :, pool] - X[seen][:, :, p : p + 1], axis=1)
     n = both.sum(0)
     mean = np.where(both, d, 0).sum(0) / np.maximum(n, 1)
     keep = n >= 3
@@ -138,8 +139,7 @@ def _ref_nearest_seen(seen, frames):
     if seen.size == 1:
         return np.full(frames.size, seen[0])
     i = np.clip(np.searchsorted(seen, frames), 1, seen.size - 1)
-    return np.where(np.abs(seen[i - 1] - frames) <= np.abs(seen[i] - frames),
-                    seen[i - 1], seen[i])
+    return np.where(np.abs(seen[i - 1] - frames) <= np.abs(seen[i] - frames), seen[i - 1], seen[i])
 
 
 def _ref_rigid(X, observed, p, ranked, unseen):
@@ -148,15 +148,15 @@ def _ref_rigid(X, observed, p, ranked, unseen):
     out = np.full(X[:, :, p].shape, np.nan)
     refs = _ref_nearest_seen(np.flatnonzero(observed[:, p]), unseen)
     for r in np.unique(refs):
-        d = np.linalg.norm(X[r][:, ranked] - X[r][:, p:p + 1], axis=0)
+        d = np.linalg.norm(X[r][:, ranked] - X[r][:, p : p + 1], axis=0)
         order = ranked[np.argsort(np.where(observed[r, ranked], d, np.inf), kind="stable")]
         order = order[observed[r, order]]
-        for nb, frames in _ref_neighbour_sets(observed, unseen[refs == r], order,
-                                          fill.RIGID_NEIGHBOURS):
+        for nb, frames in _ref_neighbour_sets(
+            observed, unseen[refs == r], order, fill.RIGID_NEIGHBOURS
+        ):
             A, B = X[r][:, nb], X[frames][:, :, nb]
             R = _ref_kabsch(np.broadcast_to(A, B.shape), B)
-            out[frames] = (np.einsum("fij,j->fi", R, X[r][:, p] - A.mean(axis=1))
-                           + B.mean(axis=2))
+            out[frames] = np.einsum("fij,j->fi", R, X[r][:, p] - A.mean(axis=1)) + B.mean(axis=2)
     return out
 
 
@@ -193,8 +193,10 @@ def _ref_fills(X, observed, p, ranked):
     unseen = np.flatnonzero(~observed[:, p])
     out = np.full((3,) + X[:, :, p].shape, np.nan)
     out[0] = _ref_rigid(X, observed, p, ranked, unseen)
-    for n, k, make in ((fill.RIGID_NEIGHBOURS, 1, _ref_template),
-                       (fill.AFFINE_NEIGHBOURS, 2, _ref_affine)):
+    for n, k, make in (
+        (fill.RIGID_NEIGHBOURS, 1, _ref_template),
+        (fill.AFFINE_NEIGHBOURS, 2, _ref_affine),
+    ):
         for nb, frames in _ref_neighbour_sets(observed, unseen, ranked, n):
             both = np.flatnonzero(observed[:, p] & observed[:, nb].all(axis=1))
             if both.size >= 2:
@@ -203,7 +205,7 @@ def _ref_fills(X, observed, p, ranked):
 
 
 def _ref_fill_unseen(X, observed, points):
-    """The per-point loop of ``fill_unseen`` before it was batched (its definition; the
+    """``fill_unseen`` as a per-point loop (its definition; the
     reliability: the RMS over the unseen frames of the median distance of the four fills
     to their median)."""
     filled, spread = X.copy(), np.full(X.shape[2], np.nan)
@@ -215,10 +217,10 @@ def _ref_fill_unseen(X, observed, points):
         if not made.any():
             continue
         S, frames = S[:, made], np.flatnonzero(made)
-        four = np.concatenate([S, X[frames, :, p][None]])                  # (4, frames, 3)
+        four = np.concatenate([S, X[frames, :, p][None]])  # (4, frames, 3)
         filled[frames, :, p] = np.median(four, axis=0)
         stray = np.median(np.linalg.norm(four - filled[frames, :, p], axis=2), axis=0)
-        spread[p] = np.sqrt(np.mean(stray ** 2)) / radius
+        spread[p] = np.sqrt(np.mean(stray**2)) / radius
     return filled, spread
 
 
@@ -233,10 +235,14 @@ def _deforming_parts(seed):
     for p in rng.choice(X.shape[2], 20, replace=False):
         a, b = np.sort(rng.integers(0, X.shape[0] + 1, 2))
         kind = rng.integers(3)
-        obs[:, p] = ((np.arange(X.shape[0]) < a) if kind == 0 else
-                     (np.arange(X.shape[0]) >= b - 3) if kind == 1 else
-                     ~((np.arange(X.shape[0]) >= a) & (np.arange(X.shape[0]) < b)))
-    obs[:, 0] = np.arange(X.shape[0]) == 4                          # seen once
+        obs[:, p] = (
+            (np.arange(X.shape[0]) < a)
+            if kind == 0
+            else (np.arange(X.shape[0]) >= b - 3)
+            if kind == 1
+            else ~((np.arange(X.shape[0]) >= a) & (np.arange(X.shape[0]) < b))
+        )
+    obs[:, 0] = np.arange(X.shape[0]) == 4  # seen once
     return X, obs
 
 

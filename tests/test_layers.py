@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the layers, lowest first (docs/architecture.md); a module belongs to the first prefix
 #: that names it
 LAYERS = [
-    ("shared", ["nrsfm.geometry", "nrsfm.validation", "nrsfm.io", "nrsfm.paths",
+    ("shared", ["nrsfm.geometry", "nrsfm.linalg", "nrsfm.validation", "nrsfm.io", "nrsfm.paths",
                 "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.warnings_catalog"]),
     ("stages", ["nrsfm.stages"]),
     ("metrics", ["nrsfm.metrics"]),

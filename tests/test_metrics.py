@@ -41,7 +41,7 @@ def test_e3d_invariant_to_per_frame_similarity(shapes):
     F = len(shapes)
     rng = np.random.default_rng(1)
     Q = Rotation.random(F, random_state=2).as_matrix()
-    Q[::2] = Q[::2] @ np.diag([1, 1, -1])                 # reflections on half the frames
+    Q[::2] = Q[::2] @ np.diag([1, 1, -1])  # reflections on half the frames
     scale = rng.uniform(0.1, 10, F)[:, None, None]
     shift = rng.standard_normal((F, 3, 1))
     moved = scale * (Q @ est) + shift
@@ -63,7 +63,7 @@ def test_e3d_matches_definition_on_one_frame():
 
 def test_akhter_metric_global_alignment_only(shapes):
     est = _noisy(shapes)
-    Q = Rotation.random(random_state=3).as_matrix() @ np.diag([1, -1, 1])   # global reflection
+    Q = Rotation.random(random_state=3).as_matrix() @ np.diag([1, -1, 1])  # global reflection
     assert e3d_akhter(Q @ est, shapes) == pytest.approx(e3d_akhter(est, shapes), rel=1e-10)
     # per-frame rotations are NOT factored out
     Qf = Rotation.random(len(shapes), random_state=4).as_matrix()
@@ -82,7 +82,7 @@ def test_rotation_error_global_alignment(shapes):
     assert rotation_error((R @ np.diag([1, 1, -1]))[:, :2], R) == pytest.approx(0, abs=1e-12)
     # one frame off by a known in-plane angle a: spectral norm of R(a) - I is 2 sin(a/2)
     a = 0.2
-    R = dt.make_synthetic(F=400, P=18, K=3, seed=11).rotations   # one frame barely moves Q
+    R = dt.make_synthetic(F=400, P=18, K=3, seed=11).rotations  # one frame barely moves Q
     Rp = R.copy()
     Rp[0] = Rotation.from_rotvec([0, 0, a]).as_matrix() @ R[0]
     errs = rotation_error(Rp, R, per_frame=True)

@@ -100,12 +100,12 @@ def test_lower_minimum_separates_a_failed_search_from_an_inexact_model():
 def test_shape_for_the_stage_rotations_in_one_solve(monkeypatch):
     """One shape solve, for the rotation stage's rotations; the diagnostics read the depth
     amplification of that answer (no second solve)."""
-    from nrsfm import pipeline
+    from nrsfm.stages.shape import bilinear
 
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
     calls = []
-    solve = pipeline.solve_shape
-    monkeypatch.setattr(pipeline, "solve_shape", lambda *a, **k: calls.append(1) or
+    solve = bilinear.solve_bilinear
+    monkeypatch.setattr(bilinear, "solve_bilinear", lambda *a, **k: calls.append(1) or
                         solve(*a, **k))
     res = nrsfm.reconstruct(seq.W, 2)
     assert len(calls) == 1

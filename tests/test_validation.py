@@ -25,13 +25,16 @@ def test_input_is_not_modified_and_translation_is_removed(seq):
     np.testing.assert_allclose(res.W, seq.W, atol=1e-12)
 
 
-@pytest.mark.parametrize("W, message", [
-    (np.zeros((10,)), r"\(2F, P\) or \(F, 2, P\)"),
-    (np.zeros((9, 12)), "even number of rows"),
-    (np.zeros((5, 3, 12)), r"\(F, 2, P\)"),
-    (np.zeros((2, 12)), "at least 2 frames"),
-    (np.zeros((10, 2)), "at least 3 points"),
-])
+@pytest.mark.parametrize(
+    "W, message",
+    [
+        (np.zeros((10,)), r"\(2F, P\) or \(F, 2, P\)"),
+        (np.zeros((9, 12)), "even number of rows"),
+        (np.zeros((5, 3, 12)), r"\(F, 2, P\)"),
+        (np.zeros((2, 12)), "at least 2 frames"),
+        (np.zeros((10, 2)), "at least 3 points"),
+    ],
+)
 def test_bad_shapes(W, message):
     with pytest.raises(ValueError, match=message):
         nrsfm.reconstruct(W, 1)
@@ -46,18 +49,20 @@ def test_non_finite(seq, value):
         nrsfm.reconstruct(W, 2, missing="error")
 
 
-@pytest.mark.parametrize("K, message", [(0, "at least 1"), (-2, "at least 1"),
-                                        (7, "too large"), (2.5, "integer"), (True, "integer")])
+@pytest.mark.parametrize(
+    "K, message",
+    [(0, "at least 1"), (-2, "at least 1"), (7, "too large"), (2.5, "integer"), (True, "integer")],
+)
 def test_bad_K(seq, K, message):
     with pytest.raises(ValueError, match=message):
         nrsfm.reconstruct(seq.W, K)
 
 
 def test_K_limit_is_min_of_2F_and_P_minus_1():
-    W = dt.make_synthetic(F=4, P=30, K=2, seed=0).W       # 2F = 8 rows
+    W = dt.make_synthetic(F=4, P=30, K=2, seed=0).W  # 2F = 8 rows
     with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 8"):
         nrsfm.reconstruct(W, 3)
-    W = dt.make_synthetic(F=30, P=9, K=2, seed=0).W       # P - 1 = 8 < 3K = 9 = P
+    W = dt.make_synthetic(F=30, P=9, K=2, seed=0).W  # P - 1 = 8 < 3K = 9 = P
     with pytest.raises(ValueError, match=r"min\(2F, P - 1\) = 8"):
         nrsfm.reconstruct(W, 3)
 
@@ -80,8 +85,9 @@ def test_bad_rotations(seq):
 
 def test_constant_W_is_rejected():
     with pytest.raises(ValueError, match="constant"):
-        nrsfm.reconstruct(np.ones((10, 6)), 1, method="pseudo_inverse",
-                          rotations=np.tile(np.eye(3), (5, 1, 1)))
+        nrsfm.reconstruct(
+            np.ones((10, 6)), 1, method="pseudo_inverse", rotations=np.tile(np.eye(3), (5, 1, 1))
+        )
 
 
 def test_pseudo_inverse_with_given_rotations_result_object(seq):
@@ -102,11 +108,11 @@ def test_power_of_two_scale_is_exact():
     from nrsfm.stages.measurement import power_of_two_scale
 
     rng = np.random.default_rng(0)
-    for c in (1e153, 1e-165, 3.0, 2.0 ** -1060, 1e300):
+    for c in (1e153, 1e-165, 3.0, 2.0**-1060, 1e300):
         A = rng.standard_normal((6, 5)) * c
         p = power_of_two_scale(A)
         assert 1.0 <= np.abs(A / p).max() < 2.0
-        np.testing.assert_array_equal((A / p) * p, A)      # only exponents change
+        np.testing.assert_array_equal((A / p) * p, A)  # only exponents change
     assert power_of_two_scale(np.zeros((3, 3))) == 1.0
 
 
@@ -115,11 +121,16 @@ def test_any_finite_scale_of_W(seq, factor):
     ref = nrsfm.reconstruct(seq.W, 2)
     res = nrsfm.reconstruct(seq.W * factor, 2)
     assert np.all(np.isfinite(res.shapes)) and res.scale > 0
-    np.testing.assert_allclose(res.shapes / factor, ref.shapes, rtol=0,
-                               atol=1e-6 * np.abs(ref.shapes).max())
+    np.testing.assert_allclose(
+        res.shapes / factor, ref.shapes, rtol=0, atol=1e-6 * np.abs(ref.shapes).max()
+    )
     # exact data: the reprojection error is round-off, so compare it on W's scale
-    np.testing.assert_allclose(res.reprojection_error() / factor, ref.reprojection_error(),
-                               rtol=1e-4, atol=1e-7 * np.abs(seq.W).max())
+    np.testing.assert_allclose(
+        res.reprojection_error() / factor,
+        ref.reprojection_error(),
+        rtol=1e-4,
+        atol=1e-7 * np.abs(seq.W).max(),
+    )
     e_ref = ref.errors(seq.shapes, seq.rotations)
     e = res.errors(seq.shapes * factor, seq.rotations)
     for key in e_ref:
@@ -128,8 +139,7 @@ def test_any_finite_scale_of_W(seq, factor):
 
 def test_tiny_variation_on_a_large_offset_is_not_constant(seq):
     """Only a W whose rows are all constant is 'constant'."""
-    res = nrsfm.reconstruct(seq.W * 1e-9 + 1e6, 2, method="pseudo_inverse",
-                            rotations=seq.rotations)
+    res = nrsfm.reconstruct(seq.W * 1e-9 + 1e6, 2, method="pseudo_inverse", rotations=seq.rotations)
     assert np.all(np.isfinite(res.shapes)) and res.scale > 0
 
 
@@ -139,7 +149,7 @@ def test_infinite_entry_is_called_infinite(seq, value):
     infinite entry is an error whose message says infinite, not "NaN or infinite"."""
     W = seq.W.copy()
     W[3, 4] = value
-    W[5, 6] = np.nan                                # missing: not counted as an error
+    W[5, 6] = np.nan  # missing: not counted as an error
     with pytest.raises(ValueError) as info:
         nrsfm.reconstruct(W, 2)
     msg = str(info.value)

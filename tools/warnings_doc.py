@@ -24,10 +24,7 @@ def constants():
     from nrsfm.cli.run import INPUT_KEYS
     from nrsfm.stages.shape.closed_form import NULLSPACE_GAP_MIN
 
-    names = ["RANK_RTOL", "RANK_GAP_MIN", "CONDITION_MAX", "COST_RATIO_MAX", "KEPT_MIN",
-             "SIGN_FRACTION_MAX", "DEPTH_AMPLIFICATION_MAX", "DEPTH_NOISE_MIN",
-             "CAMERA_SPREAD_MIN_DEG", "TRANSPOSE_RATIO"]
-    out = {n: getattr(diagnostics, n) for n in names}
+    out = {name: value for name, value in vars(diagnostics).items() if name.isupper()}
     out.update(NULLSPACE_GAP_MIN=NULLSPACE_GAP_MIN, INPUT_KEYS=", ".join(INPUT_KEYS))
     return out
 
@@ -41,8 +38,9 @@ def document():
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true",
-                        help="only check that docs/warnings.md is up to date")
+    parser.add_argument(
+        "--check", action="store_true", help="only check that docs/warnings.md is up to date"
+    )
     args = parser.parse_args(argv)
     text = document()
     if args.check:

@@ -1,37 +1,15 @@
-"""Fill of the points not seen in a frame (issue 24): after the shape stage, from the
-reconstruction's shapes of the points that were seen.
+"""Fill of the points not seen in a frame, after the shape stage, from their neighbours.
 
-Where a track is lost, occluded or starts late, the shape stage's own fill of it (the
-low-rank model's) is poorly determined: a point seen in a few dozen frames does not pin down
-its 3K basis coefficients. Its neighbours, seen in the frames it is not, carry it better.
-:func:`fill_unseen` replaces the shape stage's shape of each point in each frame it was not
-seen in by the per-coordinate median of four fills:
-
-* ``rigid``: carried rigidly (rotation + translation, Kabsch) from the frame it was seen
-  in nearest in time with the 4 points nearest to it there among those seen in both
-  frames (the motion-capture user's "rigid body fill");
-* ``template``: the same neighbours, the point's position in their frame averaged over
-  every frame it was seen with them (generalised Procrustes), carried by their motion;
-* ``affine``: an affine combination of its 6 nearest neighbours seen there, the weights
-  fitted (ridge) on the frames it was seen with them (exact for a rigid body);
-* the shape stage's fill.
-
-"Nearest" (template, affine): mean 3D distance over the frames both are seen. How far the
-four fills stray from their median (in each unseen frame the median of their four distances
-to it; RMS over the point's unseen frames, in units of the shapes' RMS radius) is returned
-as the fill's reliability: it predicts the fill's error (Spearman .86 - .88 over the lost
-points of the MoCap sequences, against .84 for the spread of the three neighbour fills that
-it replaced). Measurements: ``docs/missing_data_scale.md``, section "Issue 24".
-
-"Nearest" is ranked among a pool of 16 candidates: the 16 nearest by mean distance over
-20 of the point's seen frames (spread evenly) among the 17 points nearest to it in each of
-those frames (a KD-tree per frame). Before, the pool was the 16 nearest among all points,
-and the search for them took three quarters of the fill's time at 20,000 points; the pool
-from the per-frame nearest gives the same fills on MoCap and e3d at most as large on the
-dense tracks (``docs/missing_data_scale.md``).
-
-The computation is batched over the points and their unseen frames (same definition as
-the per-point loop it replaced, to rounding; ``tests/test_fill.py`` keeps that loop).
+Where a track is lost or starts late, the shape stage's (low-rank) fill of it is poorly
+determined, while its neighbours, seen in the frames it is not, carry it. :func:`fill_unseen`
+takes the per-coordinate median of the shape stage's fill and three from the neighbours:
+``rigid``, carried rigidly (Kabsch) from the frame seen nearest in time with the 4 points
+nearest to it there; ``template``, the point in its 4 nearest neighbours' frame averaged
+over the frames it was seen with them (generalised Procrustes), carried by their motion;
+``affine``, an affine combination of its 6 nearest neighbours, the weights fitted on the
+frames it was seen with them. "Nearest" (template, affine): mean 3D distance over the
+frames both are seen. How far the four stray from their median predicts the fill's error.
+Why these choices: ``docs/studies/missing_data.md``.
 """
 
 from __future__ import annotations
@@ -41,28 +19,20 @@ import numpy as np
 from ..geometry import project_to_so3_batch
 from ..validation import check_shapes
 
-__all__ = ["AFFINE_NEIGHBOURS", "RIDGE", "RIGID_NEIGHBOURS", "SPREAD_MAX", "fill_unseen"]
-
 #: neighbours of the rigid and template fills, and of the affine fill
 RIGID_NEIGHBOURS, AFFINE_NEIGHBOURS = 4, 6
 #: ridge of the affine fill's weights, relative to the mean eigenvalue of their normal matrix
 RIDGE = 1e-2
-#: a filled point is unreliable (``nrsfm.Reconstruction.unreliable``) when its fills stray
-#: from their median by more than this fraction of the shapes' RMS radius (the reliability
-#: returned by :func:`fill_unseen`): the level of issue 24's good fills (.05). On MoCap with
-#: lost, late and gone-and-back tracks (4 sequences, 3 patterns, drop seeds 31 and 7: 288
-#: lost points; seeds 11, 23, 42: 432) it misses 2 and 2 of the fills above .15 and flags
-#: 6 and 7 below .05 (the three neighbour fills' spread before: 3 and 2, 10 and 12):
-#: docs/missing_data_scale.md
+#: a filled point is unreliable (``Reconstruction.unreliable``) when its fills stray from
+#: their median by more than this fraction of the shapes' RMS radius
 SPREAD_MAX = 0.05
-_POOL = 16          # candidate neighbours per point (ranked exactly); sampled frames:
-_SAMPLE = 20        # frames of the point's that pick the candidates
-_CHUNK = 1 << 20    # (pair, frame) distances computed at once
+_POOL = 16  # candidate neighbours per point (ranked exactly)
+_SAMPLE = 20  # frames of the point's that pick the candidates
+_CHUNK = 1 << 20  # (pair, frame) distances computed at once
 
 
 def _centroid(A):
-    """(..., 3) the mean of the (..., 3, k) points A over their last axis (``A.mean(axis=2)``
-    bit for bit, summed in the same order, faster for small k)."""
+    """(..., 3) the mean of the (..., 3, k) points A (``A.mean(axis=2)`` bit for bit)."""
     c = A[..., 0] + A[..., 1]
     for j in range(2, A.shape[-1]):
         c += A[..., j]
@@ -70,9 +40,8 @@ def _centroid(A):
 
 
 def _kabsch(A, B):
-    """(n, 3, 3) rotations (no reflection) with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)
-    (the SO(3) Procrustes solution, the nearest rotation to the centred cross-covariance)."""
-    A = A - _centroid(A)[..., None]            # B's centring is implied: A's rows sum to 0
+    """(n, 3, 3) rotations with ``R (A - mean A) ~ B - mean B``; A, B (n, 3, k)."""
+    A = A - _centroid(A)[..., None]  # B's centring is implied: A's rows sum to 0
     return project_to_so3_batch(B @ A.transpose(0, 2, 1))
 
 
@@ -83,17 +52,16 @@ def _dist(a, b):
 
 
 def _mean_distance(Xt, O, todo, slot, q, frames, valid):
-    """(mean, count) for each pair (todo[slot[i]], q[i]): the mean distance over the
-    frames ``frames[slot[i]][valid[slot[i]]]`` (in order) in which q[i] is seen, and their
-    number; ``frames``, ``valid`` (n, S) per point slot."""
+    """(mean, count) for each pair (todo[slot[i]], q[i]): the mean distance over the frames
+    ``frames[slot[i]][valid[slot[i]]]`` in which q[i] is seen, and their number."""
     mean, count = np.empty(q.size), np.empty(q.size, int)
     F = Xt.shape[1]
     flat, seen = Xt.reshape(-1, 3), O.T.ravel()
-    own = Xt[todo[:, None], frames]                             # (n, S, 3), once per point
+    own = Xt[todo[:, None], frames]  # (n, S, 3), once per point
     step = max(1, _CHUNK // max(frames.shape[1], 1))
     for s in range(0, q.size, step):
         i = slice(s, s + step)
-        f = frames[slot[i]].T                                   # (frames, pairs)
+        f = frames[slot[i]].T  # (frames, pairs)
         iq = q[i] * F + f
         both = valid[slot[i]].T & seen.take(iq)
         d = _dist(flat.take(iq, axis=0), own[slot[i]].transpose(1, 0, 2))
@@ -102,16 +70,8 @@ def _mean_distance(Xt, O, todo, slot, q, frames, valid):
     return mean, count
 
 
-def _unique_pairs(slot, q, P):
-    """The distinct (slot, q) pairs, sorted."""
-    key = np.sort(slot * P + q)
-    key = key[np.append(True, key[1:] != key[:-1])]
-    return key // P, key % P
-
-
 def _samples(O, todo):
-    """(n, S) frames and validity: each point's seen frames (all) and ``_SAMPLE`` of them
-    spread evenly (the candidates' frames), padded."""
+    """(n, S) frames and validity: ``_SAMPLE`` of each point's seen frames, and all."""
     seen = O[:, todo].T
     n = seen.sum(axis=1)
     allf = np.zeros((todo.size, max(n.max(), 1)), int)
@@ -120,15 +80,14 @@ def _samples(O, todo):
     m = np.minimum(_SAMPLE, n)
     j = np.zeros((todo.size, _SAMPLE), int)
     sv = np.arange(_SAMPLE) < m[:, None]
-    for k in np.unique(n):                  # np.linspace, as the per-point definition
-        j[n == k, :min(_SAMPLE, k)] = np.linspace(0, k - 1, min(_SAMPLE, k)).astype(int)
+    for k in np.unique(n):  # np.linspace, as the per-point definition
+        j[n == k, : min(_SAMPLE, k)] = np.linspace(0, k - 1, min(_SAMPLE, k)).astype(int)
     return np.take_along_axis(allf, j, axis=1), sv, allf, allv
 
 
 def _near_pairs(X, O, todo, sf):
     """Sorted distinct (point slot, candidate) pairs: in each of the point's sampled frames
-    ``sf`` (n, S), the ``_POOL + 1`` points seen there nearest to it (KD-tree per frame;
-    X (F, 3, P), whose rows a frame's points are read from)."""
+    ``sf`` (n, S), the ``_POOL + 1`` points seen there nearest to it; X (F, 3, P)."""
     from scipy.spatial import cKDTree
 
     slot, cand = [], []
@@ -138,46 +97,41 @@ def _near_pairs(X, O, todo, sf):
         tree = cKDTree(X[f][:, ids].T, leafsize=32, balanced_tree=False, compact_nodes=False)
         slot.append(np.repeat(rows, k))
         cand.append(ids[tree.query(X[f][:, todo[rows]].T, k=k)[1].reshape(-1)])
-    return _unique_pairs(np.concatenate(slot), np.concatenate(cand), X.shape[2])
-
-
-def _first(key, slot, n):
-    """Indices of the first ``n`` entries of each slot (entries sorted by slot)."""
-    start = np.searchsorted(slot, np.arange(slot.max() + 1 if slot.size else 0))
-    rank = np.arange(slot.size) - start[slot]
-    return key[rank < n]
+    P = X.shape[2]
+    key = np.unique(np.concatenate(slot) * P + np.concatenate(cand))
+    return key // P, key % P
 
 
 def _candidates(X, Xt, O, todo):
-    """(n, _POOL) each point's candidate neighbours (-1: none), nearest first by mean
-    distance over the frames both are seen (only those seen with it in 3 frames or more),
-    from the ``_POOL`` nearest by mean distance over its sampled frames among the
-    ``_POOL + 1`` nearest to it in each of them."""
+    """(n, _POOL) each point's candidate neighbours (-1: none), nearest first by mean distance
+    over the frames both are seen (3 or more), among the nearest over its sampled frames."""
     sf, sv, allf, allv = _samples(O, todo)
-    slot, q = _near_pairs(X, O, todo, np.where(sv, sf, sf[:, :1]))    # pad: a repeat
+    slot, q = _near_pairs(X, O, todo, np.where(sv, sf, sf[:, :1]))  # pad: a repeat
     coarse, count = _mean_distance(Xt, O, todo, slot, q, sf, sv)
     ok = (count > 0) & (q != todo[slot])
     slot, q, coarse = slot[ok], q[ok], coarse[ok]
     order = np.lexsort((q, coarse, slot))
-    pick = _first(order, slot[order], _POOL)
+    pick = order[_rank(slot[order], todo.size) < _POOL]
     slot, q, coarse = slot[pick], q[pick], coarse[pick]
     mean, n = _mean_distance(Xt, O, todo, slot, q, allf, allv)
     keep = n >= 3
     slot, q, mean, coarse = slot[keep], q[keep], mean[keep], coarse[keep]
     order = np.lexsort((q, coarse, mean, slot))
     out = np.full((todo.size, _POOL), -1)
-    slot, q = slot[order], q[order]
-    start = np.searchsorted(slot, np.arange(todo.size))
-    out[slot, np.arange(slot.size) - start[slot]] = q
+    out[slot[order], _rank(slot[order], todo.size)] = q[order]
     return out
 
 
+def _rank(slot, n):
+    """Each entry's place among those of its slot (entries sorted by slot, n slots)."""
+    return np.arange(slot.size) - np.searchsorted(slot, np.arange(n))[slot]
+
+
 def _by_size(avail, n):
-    """[(k, rows, columns)]: the first ``n`` available of each row of ``avail`` (m, S)
-    bool, grouped by their number k >= 3 (rows with fewer: none): the rows with k, and
-    their (rows, k) columns in order."""
+    """[(k, rows, columns)]: the first ``n`` available of each row of ``avail`` (m, S) bool,
+    grouped by their number k >= 3: the rows with k, and their (rows, k) columns."""
     sel, count = np.empty_like(avail), np.zeros(avail.shape[0], np.int64)
-    for j in range(avail.shape[1]):             # a running count per column (S is small)
+    for j in range(avail.shape[1]):  # a running count per column (S is small)
         count += avail[:, j]
         sel[:, j] = avail[:, j] & (count <= n)
     k = np.minimum(count, n)
@@ -194,8 +148,7 @@ def _gather(Xt, nb, f):
 
 
 def _nearest_seen(seen, unseen_f, slot):
-    """For each (slot, frame) pair, the slot's seen frame nearest in time (the earlier on
-    a tie); ``seen`` (n, F) bool."""
+    """For each (slot, frame) pair, the slot's seen frame nearest in time (earlier on a tie)."""
     F = seen.shape[1]
     frame = np.arange(F)
     prev = np.maximum.accumulate(np.where(seen, frame, -1), axis=1)[slot, unseen_f]
@@ -206,15 +159,14 @@ def _nearest_seen(seen, unseen_f, slot):
 
 
 def _rigid(Xt, O, todo, ranked, slot, f, seen_f):
-    """(m, 3) the rigid fill of each (point slot, unseen frame) pair (NaN where not
-    made): from the frame r seen nearest in time, the ``RIGID_NEIGHBOURS`` candidates
-    nearest to the point in r among those seen in r and f (``seen_f``: which of its
-    candidates are seen in f, (m, _POOL))."""
+    """(m, 3) the rigid fill of each (point slot, unseen frame f) pair (NaN where not made):
+    from the frame r seen nearest in time, the ``RIGID_NEIGHBOURS`` candidates nearest to
+    the point in r among those seen in r and f (``seen_f`` (m, _POOL): in f)."""
     out = np.full((slot.size, 3), np.nan)
     F = Xt.shape[1]
     r = _nearest_seen(O[:, todo].T, f, slot)
     p = todo[slot]
-    key, pair = np.unique(slot * F + r, return_inverse=True)      # distinct (slot, r)
+    key, pair = np.unique(slot * F + r, return_inverse=True)  # distinct (slot, r)
     us, ur = key // F, key % F
     cand = ranked[us]
     valid = cand >= 0
@@ -229,25 +181,22 @@ def _rigid(Xt, O, todo, ranked, slot, f, seen_f):
         nb = np.take_along_axis(cand[rows], cols, axis=1)
         A, B = _gather(Xt, nb, r[rows]), _gather(Xt, nb, f[rows])
         R = _kabsch(A, B)
-        out[rows] = (np.einsum("nij,nj->ni", R, Xt[p[rows], r[rows]] - _centroid(A))
-                     + _centroid(B))
+        out[rows] = np.einsum("nij,nj->ni", R, Xt[p[rows], r[rows]] - _centroid(A)) + _centroid(B)
     return out
 
 
 def _patterns(O, todo, ranked, slot, seen_f, n):
-    """[(k, item, nb, both_slot, both_f)] for the fills from the first ``n`` candidates
-    seen in the frame: each pair's item (-1: none; one item per point and neighbour set,
-    with at least 2 frames in which the point and its k neighbours are all seen: rows
-    ``both_slot``/``both_f``, sorted by item then frame) and the items' (items, k)
-    neighbours; ``seen_f`` (m, _POOL): which of the pair's candidates are seen in its
-    frame."""
+    """[(k, item, nb, islot, bi, bf)] for the fills from the first ``n`` candidates seen in
+    the frame: each pair's item (-1: none; one item per point and neighbour set seen
+    together in at least 2 frames: rows ``bi``, ``bf``, sorted), the items' (items, k)
+    neighbours and point slots."""
     out = []
     for k, rows, cols in _by_size(seen_f, n):
         code = slot[rows] * (1 << _POOL) + (1 << cols).sum(axis=1)
         codes, inverse = np.unique(code, return_inverse=True)
         islot, icols = codes >> _POOL, (codes[:, None] >> np.arange(_POOL)) & 1
         nb = np.take_along_axis(ranked[islot], np.nonzero(icols)[1].reshape(-1, k), axis=1)
-        both = O[:, todo[islot]].T & O.T[nb].all(axis=1)            # (items, F)
+        both = O[:, todo[islot]].T & O.T[nb].all(axis=1)  # (items, F)
         good = both.sum(axis=1) >= 2
         item = np.full(slot.size, -1)
         renum = np.cumsum(good) - 1
@@ -259,7 +208,7 @@ def _patterns(O, todo, ranked, slot, seen_f, n):
 
 
 def _segment_mean(V, seg, n):
-    """(n, ...) the mean of the rows of V in each of the n segments (rows sorted by seg)."""
+    """(n, ...) the mean of the rows of V in each of n segments (rows sorted by seg)."""
     start = np.searchsorted(seg, np.arange(n))
     count = np.diff(np.append(start, seg.size)).reshape((n,) + (1,) * (V.ndim - 1))
     return np.add.reduceat(V, start, axis=0) / count
@@ -267,7 +216,7 @@ def _segment_mean(V, seg, n):
 
 def _template(Xt, ip, nb, bi, bf, iters=3):
     """(items, 3, k), (items, 3): each item's neighbours' template and the point in it,
-    averaged over the frames the point was seen with them (GPA)."""
+    averaged (GPA) over the frames the point was seen with them."""
     n = nb.shape[0]
     A = _gather(Xt, nb[bi], bf)
     c = _centroid(A)
@@ -296,10 +245,9 @@ def _affine(Xt, ip, nb, bi, bf):
 
 
 def _fills(Xt, O, todo, ranked, slot, f):
-    """(3, m, 3) the rigid, template and affine fills of each (point slot, unseen frame)
-    pair (NaN where not made)."""
+    """(3, m, 3) the rigid, template and affine fills of each pair (NaN where not made)."""
     out = np.full((3, slot.size, 3), np.nan)
-    seen_f = (O[:, np.maximum(ranked, 0)] & (ranked >= 0))[f, slot]   # (m, _POOL)
+    seen_f = (O[:, np.maximum(ranked, 0)] & (ranked >= 0))[f, slot]  # (m, _POOL)
     out[0] = _rigid(Xt, O, todo, ranked, slot, f, seen_f)
     for n, j in ((RIGID_NEIGHBOURS, 1), (AFFINE_NEIGHBOURS, 2)):
         for k, item, nb, islot, bi, bf in _patterns(O, todo, ranked, slot, seen_f, n):
@@ -318,8 +266,8 @@ def _fills(Xt, O, todo, ranked, slot, f):
 
 def _median4(a, b, c, d):
     """Element-wise median of four arrays (the mean of the middle two, as ``np.median``)."""
-    return 0.5 * (np.maximum(np.minimum(a, b), np.minimum(c, d))
-                  + np.minimum(np.maximum(a, b), np.maximum(c, d)))
+    lo = np.maximum(np.minimum(a, b), np.minimum(c, d))
+    return 0.5 * (lo + np.minimum(np.maximum(a, b), np.maximum(c, d)))
 
 
 def fill_unseen(shapes, observed, points=None):
@@ -328,34 +276,29 @@ def fill_unseen(shapes, observed, points=None):
     Parameters
     ----------
     shapes : (F, 3, P) ndarray
-        A reconstruction's shapes (any units, any per-frame frame); those of the points
-        seen in a frame are kept, and give the fills.
+        A reconstruction's shapes (any units); those of the points seen in a frame are
+        kept, and give the fills.
     observed : (F, P) bool array_like
         True where a point was seen.
     points : (P,) bool array_like, optional
         The points to fill (default: every point not seen in some frame);
-        :func:`nrsfm.reconstruct` passes those the data leave undetermined (the others'
-        model fill is better: uniform missing data, short gaps).
+        :func:`nrsfm.reconstruct` passes those the data leave undetermined.
 
     Returns
     -------
     filled : (F, 3, P) ndarray
         ``shapes`` with each point's shape in each frame it was not seen in replaced by the
-        per-coordinate median of its rigid, template and affine fills and its shape there
-        (the model's fill); where no neighbour fill can be made (fewer than 3 neighbours
-        seen there and with the point), the model's fill is kept.
+        per-coordinate median of its rigid, template and affine fills and its shape there;
+        kept where no neighbour fill can be made (fewer than 3 neighbours seen).
     spread : (P,) ndarray
         Reliability of each point's fill: in each of its unseen frames the median of the
-        distances of its four fills (rigid, template, affine, the model's) to their
-        per-coordinate median, RMS over those frames, in units of the shapes' RMS radius;
-        larger is less reliable. NaN for a point not filled (seen in every frame or in
-        none, or not in ``points``).
+        distances of its four fills to their median, RMS over those frames, in units of the
+        shapes' RMS radius; NaN for a point not filled.
     """
     X = check_shapes(shapes, "shapes")
     observed = np.asarray(observed, bool)
     if observed.shape != (X.shape[0], X.shape[2]):
-        raise ValueError(f"observed must have shape {(X.shape[0], X.shape[2])}; got "
-                         f"{observed.shape}")
+        raise ValueError(f"observed must have shape {X.shape[::2]}; got {observed.shape}")
     filled = X.copy()
     spread = np.full(X.shape[2], np.nan)
     centred = X - X.mean(axis=2, keepdims=True)
@@ -367,9 +310,9 @@ def fill_unseen(shapes, observed, points=None):
     todo = np.flatnonzero(todo)
     if todo.size == 0:
         return filled, spread
-    Xt = np.ascontiguousarray(X.transpose(2, 0, 1))                # (P, F, 3)
+    Xt = np.ascontiguousarray(X.transpose(2, 0, 1))  # (P, F, 3)
     ranked = _candidates(X, Xt, observed, todo)
-    slot, f = np.nonzero(~observed[:, todo].T)                     # (point, unseen frame)
+    slot, f = np.nonzero(~observed[:, todo].T)  # (point, unseen frame)
     S = _fills(Xt, observed, todo, ranked, slot, f)
     made = np.isfinite(S).all(axis=(0, 2))
     S, slot, f = S[:, made], slot[made], f[made]
@@ -377,7 +320,7 @@ def fill_unseen(shapes, observed, points=None):
     four = (S[0], S[1], S[2], Xt[p, f])
     median = _median4(*four)
     filled[f, :, p] = median
-    stray = _median4(*(_dist(x, median) for x in four))         # robust to one stray fill
+    stray = _median4(*(_dist(x, median) for x in four))  # robust to one stray fill
     n = np.bincount(slot, minlength=todo.size)
     mean = np.bincount(slot, stray * stray, minlength=todo.size) / np.maximum(n, 1)
     spread[todo[n > 0]] = np.sqrt(mean[n > 0]) / radius if radius > 0 else 0.0

@@ -1,24 +1,12 @@
 """Missing data: low-rank completion of the measurement matrix W (paper Sec. 4e-ii).
 
-The paper completes W with Cabral et al.'s method and then runs its algorithm on the
-completed matrix; :func:`nrsfm.reconstruct` does the same (``missing="complete"``) through
-:func:`complete`, which returns one :class:`Completion`. Two completions, chosen by
-:class:`MeasurementSettings` ``.completion``:
-
-* ``soft_impute`` (:mod:`.soft_impute`): nuclear-norm completion of the time-lagged W,
-  a full SVD per iteration;
-* ``factorisation`` (:mod:`.factorisation`): a rank-3K factorisation of the observed
-  entries, no SVD after the start (it scales to video);
-* ``auto`` (default): soft-impute where the lags rule (:func:`choose_lags`) asks for time
-  lags (few points per frame for the rank: MoCap-sized W, where the full SVD is cheap), the
-  factorisation elsewhere (dense tracks). Measurements: ``docs/missing_data_scale.md``.
-
-:func:`complete` reads the mask (:mod:`.masks`) and the lags (:mod:`.lags`) once, and
-hands the checked, zero-filled W and the lagged matrix's copies to one solver, which then
-works alone: each solver module holds its whole iteration (the factorisation also holds
-its normal matrices and the fill gain they give, :func:`.factorisation.fill_gain`). The
-modules import one way only: ``settings``, ``lags``, ``masks``, ``result`` (no imports
-inside the package) <- ``soft_impute``, ``factorisation`` <- this module.
+The paper completes W (Cabral et al.) and runs on the completed matrix; so does
+:func:`nrsfm.reconstruct`, through :func:`complete`. ``soft_impute`` (:mod:`.soft_impute`):
+nuclear-norm completion of the time-lagged W, a full SVD per iteration; ``factorisation``
+(:mod:`.factorisation`): a rank-3K factorisation of the observed entries (it scales to
+video); ``auto``: soft-impute where the lags rule (:func:`choose_lags`) asks for time lags
+(few points per frame for the rank, where the SVD is cheap), else the factorisation. Why
+these defaults: ``docs/studies/missing_data.md``.
 """
 
 from __future__ import annotations
@@ -26,16 +14,14 @@ from __future__ import annotations
 import warnings
 
 from ...warnings_catalog import text
-from .factorisation import complete_low_rank, factorise_lagged, fill_gain
-from .lags import NEIGHBOUR_LAGS, NO_LAGS, choose_lags, lag_copies
-from .masks import observed_entries, observed_mask
+from .factorisation import complete_low_rank, fill_gain
+from .lags import choose_lags, observed_entries, observed_mask
 from .result import MAX_GAIN, Completion
-from .settings import COMPLETIONS, FILLS, MISSING, MeasurementSettings
-from .soft_impute import complete_measurements, soft_impute_lagged
+from .settings import MeasurementSettings
+from .soft_impute import complete_measurements
 
-__all__ = ["COMPLETIONS", "Completion", "FILLS", "MAX_GAIN", "MISSING", "MeasurementSettings",
-           "NEIGHBOUR_LAGS", "NO_LAGS", "choose_lags", "complete", "complete_low_rank",
-           "complete_measurements", "fill_gain", "observed_entries", "observed_mask"]
+__all__ = ["MAX_GAIN", "Completion", "MeasurementSettings", "choose_lags", "complete", "fill_gain"]
+__all__ += ["complete_low_rank", "complete_measurements", "observed_entries", "observed_mask"]
 
 
 def complete(W, K, settings):
@@ -46,9 +32,8 @@ def complete(W, K, settings):
     W : (2F, P) ndarray
         NaN where missing.
     K : int
-        Rank of the completion: 3K (Eq. 1).
+        The completion's rank is 3K (Eq. 1).
     settings : MeasurementSettings
-        ``completion`` and ``lags``.
 
     Returns
     -------
@@ -63,22 +48,16 @@ def complete(W, K, settings):
     Warns
     -----
     RuntimeWarning
-        When the completion stopped at its iteration cap before converging
-        (``W-completion-cap``, ``docs/warnings.md``).
+        ``W-completion-cap`` (``docs/warnings.md``): stopped at the iteration cap.
     """
-    Wz, observed = observed_entries(W)
-    rank = 3 * K
-    lags = (choose_lags(observed, rank) if settings.lags == "auto"
-            else tuple(settings.lags))
-    copies = lag_copies(*observed.shape, lags)
+    lags = choose_lags(observed_mask(W), 3 * K) if settings.lags == "auto" else settings.lags
     method = settings.completion
-    if method == "auto":                  # the full SVD is cheap exactly where lags are due
-        method = "soft_impute" if len(copies.lags) > 1 else "factorisation"
+    if method == "auto":  # the full SVD is cheap exactly where lags are due
+        method = "soft_impute" if len(lags) > 1 else "factorisation"
     if method == "soft_impute":
-        result = soft_impute_lagged(Wz, observed, copies)
+        result = complete_measurements(W, lags)
     else:
-        result = factorise_lagged(Wz, observed, rank, copies)
+        result = complete_low_rank(W, 3 * K, lags)
     if not result.converged:
-        warnings.warn(text("W-completion-cap", n_iter=result.n_iter), RuntimeWarning,
-                      stacklevel=3)
+        warnings.warn(text("W-completion-cap", n_iter=result.n_iter), RuntimeWarning, stacklevel=3)
     return result

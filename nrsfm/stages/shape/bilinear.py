@@ -39,7 +39,7 @@ import numpy as np
 from ...noise import noise_from_singular_values
 from ...validation import check_integer, check_positive
 from ...warnings_catalog import text
-from ...linalg import left_singular
+from ..measurement import left_singular
 from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
 from .common import ShapeResult, check_prior, check_shape_inputs
