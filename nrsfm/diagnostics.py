@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum
+from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum, transposed_cost
 from .warnings_catalog import UNRELIABLE, text
 
 #: singular values below ``RANK_RTOL * s_1`` count as zero (the rotation stage's tolerance)
@@ -137,16 +137,6 @@ def predicted_triplet_cost(M_hat, G, singular_values, sigma):
     return float(np.sum(16.0 * s2 / c2))
 
 
-def _dai_cost_per_frame(Wc, K, seed=0):
-    """Best Dai cost per frame of a centred measurement matrix (for the transpose test)."""
-    from .stages.corrective import corrective_triplets
-    from .stages.measurement import factorize
-
-    fact = factorize(Wc / max(np.linalg.norm(Wc), 1e-300), K)
-    cor = corrective_triplets(fact.M_hat, K, seed=seed, max_starts=6)
-    return float(cor.costs[0]) / (Wc.shape[0] // 2)
-
-
 def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplification=None):
     """Measure the quality signals of a run and flag those beyond their thresholds.
 
@@ -258,7 +248,7 @@ def _rotation_signals(W, K, fact, rotation_stage, seed, sig, flags, notes):
     sig["looks_transposed"] = False
     if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
         here = cost / F
-        there = _dai_cost_per_frame(W.T - W.T.mean(axis=1, keepdims=True), K, seed)
+        there = transposed_cost(W, K, seed)
         sig["transposed_cost_per_frame"] = there
         if there < TRANSPOSE_RATIO * here:
             sig["looks_transposed"] = True

@@ -185,8 +185,9 @@ def depth_amplification(R, X, K):
         ``inf`` where a direction of a mode is seen by no camera (a static camera);
         ``nan`` for shapes that are all zero.
     """
-    R = check_rotations(R, "R", allow_orthographic=True)[:, :2]
-    X = check_shapes(X, "X", R.shape[0])
+    R, X = np.asarray(R, float)[:, :2], np.asarray(X, float)     # from reconstruct: checked
+    if X.ndim != 3 or X.shape[1] != 3 or R.shape != (X.shape[0], 2, 3):
+        raise ValueError(f"R (F, 3, 3) and X (F, 3, P) expected; got {R.shape}, {X.shape}")
     C, B = _mode_factors(X, int(K))
     k = C.shape[1]
     if k == 0:

@@ -162,6 +162,16 @@ def check_shapes(X, name="X", n_frames=None, n_points=None):
     return A
 
 
+def check_shape_inputs(W, R, K=None):
+    """W as (2F, P), the first two rows of R as (F, 2, 3), F, P (and K if given)."""
+    W = check_measurements(W)
+    F, P = W.shape[0] // 2, W.shape[1]
+    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
+    if K is None:
+        return W, Rf, F, P
+    return W, Rf, F, P, check_K(K, F, P)
+
+
 @contextmanager
 def blas_threads(n=1):
     """Limit BLAS/OpenMP threads inside the block (small matrices run fastest on one)."""

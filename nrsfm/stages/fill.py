@@ -17,7 +17,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import project_to_so3_batch
-from ..validation import check_shapes
 
 #: neighbours of the rigid and template fills, and of the affine fill
 RIGID_NEIGHBOURS, AFFINE_NEIGHBOURS = 4, 6
@@ -295,7 +294,9 @@ def fill_unseen(shapes, observed, points=None):
         distances of its four fills to their median, RMS over those frames, in units of the
         shapes' RMS radius; NaN for a point not filled.
     """
-    X = check_shapes(shapes, "shapes")
+    X = np.asarray(shapes, float)                   # from reconstruct: checked
+    if X.ndim != 3 or X.shape[1] != 3:
+        raise ValueError(f"shapes must have shape (F, 3, P); got {X.shape}")
     observed = np.asarray(observed, bool)
     if observed.shape != (X.shape[0], X.shape[2]):
         raise ValueError(f"observed must have shape {X.shape[::2]}; got {observed.shape}")

@@ -16,7 +16,7 @@ import numpy as np
 from ..corrective import search_triplet
 
 __all__ = ["DETERMINED_RTOL", "Subspace", "determined_subspace", "effective_K",
-           "lift_triplets", "lower_minimum"]
+           "lift_triplets", "lower_minimum", "transposed_cost"]
 
 #: singular values of W below ``DETERMINED_RTOL * s_1`` count as zero (float64 rounding
 #: leaves about 1e-16 s_1, perturbations of 1e-7 of W's entries about 1e-8 s_1)
@@ -81,3 +81,13 @@ def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
                             hits=n_starts + 1, max_starts=n_starts, lams=())
     best = float(search.costs[0])
     return bool(best < cost * (1.0 - rtol)), best
+
+
+def transposed_cost(W, K, seed=0):
+    """The best Dai cost per frame of W read the other way round (``W.T``, centred: P / 2
+    frames of 2F points) from six starts: far below W's own where W was transposed."""
+    Wt = W.T - W.T.mean(axis=1, keepdims=True)
+    U, s, _ = np.linalg.svd(Wt / max(np.linalg.norm(Wt), 1e-300), full_matrices=False)
+    M_hat = U[:, :3 * K] * np.sqrt(s[:3 * K])               # rank-3K factor (Eq. 1)
+    search = search_triplet(M_hat, K, seed=seed, max_starts=6)
+    return float(search.costs[0]) / (Wt.shape[0] // 2)

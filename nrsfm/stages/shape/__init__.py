@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...validation import check_shape_inputs
 from .admm import AdmmSettings
 from .bilinear import BilinearSettings
-from .common import PRIORS, ShapeResult, phi, phi_inv, pseudo_inverse_shapes, truncate_rank
-from .common import check_prior, check_shape_inputs
+from .common import PRIORS, ShapeResult, check_prior, phi, phi_inv, pseudo_inverse_shapes
+from .common import truncate_rank
 
 __all__ = ["PRIORS", "SOLVERS", "ShapeResult", "solve_pseudo_inverse", "solve_shape"]
 

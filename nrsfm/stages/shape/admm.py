@@ -21,11 +21,10 @@ from typing import ClassVar, Optional
 
 import numpy as np
 
-from ...validation import check_integer, check_positive
 from ...linalg import weighted_svt
+from ...validation import check_integer, check_positive, check_shape_inputs
 from ..measurement import WORKING_FROBENIUS
-from .common import PRIORS, ShapeResult, check_prior, check_shape_inputs, phi, phi_inv
-from .common import truncate_rank
+from .common import PRIORS, ShapeResult, check_prior, phi, phi_inv, truncate_rank
 
 __all__ = ["AdmmSettings", "admm_iterations", "psvt", "shape_weights", "solve_admm"]
 

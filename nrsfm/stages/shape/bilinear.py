@@ -37,12 +37,12 @@ from typing import ClassVar, Optional
 import numpy as np
 
 from ...noise import noise_from_singular_values
-from ...validation import check_integer, check_positive
+from ...validation import check_integer, check_positive, check_shape_inputs
 from ...warnings_catalog import text
 from ..measurement import left_singular
 from ..rotations.subspace import DETERMINED_RTOL
 from .closed_form import NULLSPACE_GAP_MIN, nullspace_coefficients
-from .common import ShapeResult, check_prior, check_shape_inputs
+from .common import ShapeResult, check_prior
 from .factors import c_step, minimise, objective, project, rank_certificate
 from .factors import reduced_objective, relative_gradient, viewing_directions
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..rotations.subspace import DETERMINED_RTOL
-from .common import check_shape_inputs
+from ...validation import check_shape_inputs
 from .factors import c_step
 
 __all__ = ["closed_form_coefficients", "closed_form_shapes", "nullspace_coefficients"]

@@ -12,7 +12,7 @@ from typing import Optional
 
 import numpy as np
 
-from ...validation import check_choice, check_K, check_measurements, check_rotations
+from ...validation import check_choice
 
 __all__ = ["PRIORS", "ShapeResult", "phi", "phi_inv", "pseudo_inverse_shapes", "truncate_rank"]
 
@@ -62,16 +62,6 @@ def truncate_rank(X, K):
     """Project X# = Phi(X) onto its top-K singular vectors; returns (F, 3, P)."""
     U, s, Vt = np.linalg.svd(phi(X), full_matrices=False)
     return phi_inv((U[:, :K] * s[:K]) @ Vt[:K], X.shape[2])
-
-
-def check_shape_inputs(W, R, K=None):
-    """W as (2F, P), the first two rows of R as (F, 2, 3), F, P (and K if given)."""
-    W = check_measurements(W)
-    F, P = W.shape[0] // 2, W.shape[1]
-    Rf = check_rotations(R, "R", n_frames=F, allow_orthographic=True)[:, :2, :]
-    if K is None:
-        return W, Rf, F, P
-    return W, Rf, F, P, check_K(K, F, P)
 
 
 @dataclass
