@@ -1,5 +1,5 @@
-"""The sequence type: 2D tracks with optional 3D ground truth (benchmark loaders and the
-synthetic generators of :mod:`data_tools` build it; the views and the CLI read it)."""
+"""The sequence type: 2D tracks with optional 3D ground truth (built by the loaders and
+generators of :mod:`data_tools`, read by the views and the CLI)."""
 
 from __future__ import annotations
 
@@ -15,15 +15,13 @@ class Sequence:
     Attributes
     ----------
     name : str
-        Sequence name (``"pickup"``, ``"synthetic"``, ...).
     W : (2F, P) ndarray
         Measurement matrix, rows ``x_f, y_f`` interleaved, each row mean-centred.
     shapes : (F, 3, P) ndarray or None
-        Ground-truth 3D shape of every frame **in the camera frame**, centred per frame,
-        so that ``W[2f:2f+2] == shapes[f, :2]`` for an orthographic camera.
+        Ground-truth shape of every frame in the camera frame, centred per frame
+        (``W[2f:2f+2] == shapes[f, :2]`` for an orthographic camera).
     rotations : (F, 3, 3) ndarray or None
-        Ground-truth camera rotation of every frame (world to camera), or None where the
-        data defines none.
+        Ground-truth camera rotations (world to camera), where the data defines them.
     K : int or None
         Number of shape bases (the paper's K for benchmark sequences).
     edges : (E, 2) int ndarray or None
@@ -59,5 +57,5 @@ class Sequence:
     def __repr__(self) -> str:  # short: the arrays are large
         gt = "shapes" if self.shapes is not None else "no shapes"
         rot = "rotations" if self.rotations is not None else "no rotations"
-        return (f"Sequence(name={self.name!r}, F={self.n_frames}, P={self.n_points}, "
-                f"K={self.K}, {gt}, {rot})")
+        F, P = self.n_frames, self.n_points
+        return f"Sequence(name={self.name!r}, F={F}, P={P}, K={self.K}, {gt}, {rot})"

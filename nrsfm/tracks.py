@@ -7,25 +7,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VideoReconstruction", "reconstruct_tracks"]
-
 
 @dataclass
 class VideoReconstruction:
-    """Result of :func:`reconstruct_tracks`.
-
-    Attributes
-    ----------
-    result : nrsfm.Reconstruction
-        Reconstruction of the tracks in ``used``.
-    used : (P,) bool ndarray
-        Tracks given to :func:`nrsfm.reconstruct`.
-    n_tracks, n_complete : int
-        All tracks, and those observed in every frame.
-    missing_data : bool
-        True when the tracks with NaN (lost) entries were passed to ``reconstruct``
-        (it supports missing data); False when only the complete tracks were used.
-    """
+    """Result of :func:`reconstruct_tracks`: the :class:`nrsfm.Reconstruction` of the tracks
+    ``used`` ((P,) bool), the numbers of tracks and of complete ones (observed in every
+    frame), and whether the tracks with lost entries were passed as missing data (False:
+    the complete tracks only)."""
 
     result: object
     used: np.ndarray
@@ -44,21 +32,14 @@ def reconstruct_tracks(W, K=1, *, missing="auto", **kw):
     K : int
         Number of shape bases (dense input: the paper's K = 1).
     missing : {"auto", "complete"}
-        ``auto``: pass every track seen in at least 2 frames, NaN included, to
-        :func:`nrsfm.reconstruct` (missing data, completed there); if the observations are
-        too sparse for it (a frame with too few tracks), fall back to the complete tracks.
-        ``complete``: use the complete tracks only.
+        ``auto``: every track seen in at least 2 frames, NaN included, as missing data; the
+        complete tracks when the observations are too sparse for it. ``complete``: the
+        complete tracks only.
     **kw
         Passed to :func:`nrsfm.reconstruct` (``method``, ``seed``, ``progress``, ...).
 
-    Returns
-    -------
-    VideoReconstruction
-
-    Raises
-    ------
-    ValueError
-        Bad shape, unknown ``missing``, or too few complete tracks for K.
+    Returns a :class:`VideoReconstruction`; ValueError for a bad shape, an unknown
+    ``missing`` or too few complete tracks for K.
     """
     from .pipeline import reconstruct
 
@@ -71,20 +52,18 @@ def reconstruct_tracks(W, K=1, *, missing="auto", **kw):
         A = A.reshape(2 * A.shape[0], A.shape[2])
     if A.ndim != 2 or A.shape[0] % 2:
         raise ValueError(f"W must have shape (2F, P) or (F, 2, P); got {A.shape}")
-    complete = np.isfinite(A).all(axis=0)
-    P = A.shape[1]
+    P, complete = A.shape[1], np.isfinite(A).all(axis=0)
     if missing == "auto" and not complete.all():
         # a track seen in fewer than 2 frames has no depth to recover: not used
-        seen = np.isfinite(A).reshape(A.shape[0] // 2, 2, P).all(axis=1).sum(axis=0) >= 2
+        seen = np.isfinite(A).reshape(-1, 2, P).all(axis=1).sum(axis=0) >= 2
         try:
             res = reconstruct(A[:, seen], K, **kw)
             return VideoReconstruction(res, seen, P, int(complete.sum()), True)
-        except ValueError as exc:        # e.g. a frame that observes too few tracks
+        except ValueError as exc:  # e.g. a frame that observes too few tracks
             if not any(w in str(exc) for w in ("NaN", "observe", "too sparse")):
                 raise
-    n = int(complete.sum())
-    if n < max(3, 3 * int(K)):
-        raise ValueError(f"only {n} of {P} tracks are complete (observed in every frame); "
-                         f"K={K} needs at least {max(3, 3 * int(K))}")
-    res = reconstruct(A[:, complete], K, **kw)
-    return VideoReconstruction(res, complete, P, n, False)
+    n, need = int(complete.sum()), max(3, 3 * int(K))
+    if n < need:
+        complete = f"only {n} of {P} tracks are complete (observed in every frame)"
+        raise ValueError(f"{complete}; K={K} needs at least {need}")
+    return VideoReconstruction(reconstruct(A[:, complete], K, **kw), complete, P, n, False)

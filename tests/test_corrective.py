@@ -68,18 +68,18 @@ def test_reused_jacobian_gram_reaches_the_same_minimum():
 
 
 @pytest.mark.parametrize("K", [1, 2, 4])
-def test_corrective_triplets_exact_noise_free(K):
+def test_search_exact_noise_free(K):
     M, _ = _M(K, F=40, P=3 * K + 12)
-    res = C.corrective_triplets(M, K, seed=0)
+    res = C.search_triplet(M, K, seed=0)
     assert res.G.shape[1:] == (3 * K, 3)
     assert res.costs[0] < 1e-16
     assert np.all(np.diff(res.costs) >= 0)
 
 
-def test_corrective_triplets_deterministic():
+def test_search_deterministic():
     M, _ = _M(3, noise=0.02, seed=5)
-    a = C.corrective_triplets(M, 3, seed=4)
-    b = C.corrective_triplets(M, 3, seed=4)
+    a = C.search_triplet(M, 3, seed=4)
+    b = C.search_triplet(M, 3, seed=4)
     np.testing.assert_array_equal(a.G, b.G)
     np.testing.assert_array_equal(a.costs, b.costs)
 

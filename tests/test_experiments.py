@@ -1,15 +1,13 @@
-"""Benchmark tasks, executors (local, Dask), resumable cache, plan, report, CLI."""
+"""Benchmark tasks, local processes, resumable cache, plan, report, CLI."""
 
 import json
-import os
 
 import numpy as np
 import pytest
 
 import data_tools as dt
-from nrsfm.experiments import (Task, build_plan, choose_K, load_sequence, run_task,
-                               run_tasks, unique_tasks)
-from nrsfm.experiments import executors
+from nrsfm.experiments import (Task, build_plan, load_sequence, run_task, run_tasks, runner,
+                               unique_tasks)
 
 SEQS = ["synthetic-1", "synthetic-2"]
 
@@ -55,28 +53,16 @@ def test_local_processes_match_in_process(tmp_path):
     assert not list((tmp_path / "c").glob("*.tmp"))
 
 
-def test_dask_local_cluster_matches_local_executor(tmp_path):
-    distributed = pytest.importorskip("distributed")
-    tasks = _tiny_tasks()[:3]
-    local = run_tasks(tasks, workers=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
-        on_dask = run_tasks(tasks, cache_dir=tmp_path / "d", scheduler=client)
-        by_address = run_tasks(tasks, scheduler=cluster.scheduler_address)
-    assert _strip_times(on_dask) == _strip_times(local) == _strip_times(by_address)
-
-
 def test_interrupted_sweep_resumes_without_redoing(tmp_path, monkeypatch):
     tasks = _tiny_tasks()
     calls = []
-    real = executors.run_task
+    real = runner.run_task
 
     def counting(task):
         calls.append(task.key)
         return real(task)
 
-    monkeypatch.setattr(executors, "run_task", counting)
+    monkeypatch.setattr(runner, "run_task", counting)
 
     class Stop(Exception):
         pass
@@ -100,13 +86,13 @@ def test_interrupted_sweep_resumes_without_redoing(tmp_path, monkeypatch):
 def test_corrupt_or_foreign_cache_file_is_rerun(tmp_path):
     t = _tiny_tasks()[0]
     (tmp_path / f"{t.key}.json").write_text("{not json")
-    assert executors.load_cached(t, tmp_path) is None
+    assert runner.load_cached(t, tmp_path) is None
     other = _tiny_tasks()[1]
     (tmp_path / f"{t.key}.json").write_text(json.dumps(
         dict(experiment=other.experiment, params=other.params_json, rows=[])))
-    assert executors.load_cached(t, tmp_path) is None
+    assert runner.load_cached(t, tmp_path) is None
     run_tasks([t], cache_dir=tmp_path)
-    assert executors.load_cached(t, tmp_path)[0]["sequence"] == "synthetic-1"
+    assert runner.load_cached(t, tmp_path)[0]["sequence"] == "synthetic-1"
 
 
 def test_run_tasks_rejects_bad_arguments():
@@ -120,7 +106,7 @@ def test_run_tasks_rejects_bad_arguments():
 def test_plan_covers_every_experiment():
     plan = build_plan(sequences=["synthetic-1"], quick=True)
     assert set(plan) == {"mocap", "pseudo_inverse", "rotation_ablation", "noise", "missing",
-                         "n_ablation", "k_sweep", "auto_k", "shape"}
+                         "n_ablation", "k_sweep", "shape"}
     tasks = unique_tasks(plan)
     assert len({t.key for t in tasks}) == len(tasks)
     full = build_plan(sequences=["synthetic-1"], only=["noise"])
@@ -237,21 +223,10 @@ def test_missing_tracks_plan_runs_and_table():
     assert [line[i] for i in (11, 13, 16)] == ["0.12-0.30", "0.01-0.01", "0.02-0.20"]
 
 
-def test_choose_K_on_synthetic_sequences():
-    for K in (1, 2, 3, 4):
-        for noise in (0.0, 0.05):                    # Gavish-Donoho handles the noise
-            seq = dt.make_synthetic(F=80, P=40, K=K, seed=K, noise=noise)
-            assert choose_K(seq.W)[0] == K
-    Wm, _ = dt.drop_tracks(seq.W, 0.2, seed=0)
-    assert choose_K(Wm)[0] == 4                      # missing entries: completed first
-    with pytest.raises(ValueError, match="relative_floor"):
-        choose_K(seq.W, relative_floor=2)
-
-
 CAP_WARNING = "W-completion-cap"     # the id (docs/warnings.md); no colon: a filter field
 
 
-# known (issue 21 report): the missing-data tasks on synthetic-1 (F = 30, P = 15; 30% and 50%
+# known: the missing-data tasks on synthetic-1 (F = 30, P = 15; 30% and 50%
 # missing) stop at the completion's iteration cap; the CLI prints each warning as one line
 @pytest.mark.filterwarnings(f"always:{CAP_WARNING}:RuntimeWarning")
 def test_benchmark_command_writes_tables_and_plots(tmp_path, capsys):

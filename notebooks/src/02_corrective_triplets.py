@@ -30,7 +30,7 @@
 # `penalized_gram`, a penalised PSD relaxation (trace + penalised constraint residual, mean
 # squared camera scale fixed to 1) in place of Dai's minimum nuclear norm over the solution
 # space; `triplets_from_gram`, the triplet of its top-3 eigenpairs; `refine_triplet`,
-# Levenberg-Marquardt on Dai's cost; and `corrective_triplets`, the library's search: that
+# Levenberg-Marquardt on Dai's cost; and `search_triplet`, the library's search: that
 # relaxation at two penalties, then seeded random starts, stopped once the lowest cost has
 # been reached by two starts. The cells below compare one refined relaxation with the search.
 
@@ -48,7 +48,7 @@ import rerun as rr
 
 import data_tools
 import nrsfm
-from nrsfm.stages.corrective import corrective_triplets, refine_triplet, triplet_cost
+from nrsfm.stages.corrective import refine_triplet, search_triplet, triplet_cost
 from nrsfm.stages.relaxation import constraint_matrix, penalized_gram, triplets_from_gram
 from nrsfm.stages.measurement import factorize
 from nrsfm.metrics import camera_alignment
@@ -130,7 +130,7 @@ t0 = time.perf_counter()
 G_rel, cost_rel = relaxed_triplet(M_hat, K)
 t_rel = time.perf_counter() - t0
 t0 = time.perf_counter()
-search = corrective_triplets(M_hat, K)
+search = search_triplet(M_hat, K)
 t_search = time.perf_counter() - t0
 for label, Gs, costs, secs in (("relaxed", G_rel[None], np.array([cost_rel]), t_rel),
                                ("search", search.G, search.costs, t_search)):
@@ -169,7 +169,7 @@ plt.show()
 # %%
 noisy = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.02, seed=7)
 f_noisy = factorize(noisy.W / np.std(noisy.W), K)
-r_noisy = corrective_triplets(f_noisy.M_hat, K)
+r_noisy = search_triplet(f_noisy.M_hat, K)
 e_noisy = [sign_free_rotation_error(triplet_cameras(G, f_noisy.M_hat)[0], noisy.rotations)
            for G in r_noisy.G]
 print("costs", np.array2string(r_noisy.costs, precision=3), " e_R",
@@ -194,7 +194,7 @@ if os.environ.get("NRSFM_DATA"):
     G_p, c_p = relaxed_triplet(f_p.M_hat, pickup.K)
     out["relaxed"] = (G_p[None], np.array([c_p]), time.perf_counter() - t0)
     t0 = time.perf_counter()
-    s_p = corrective_triplets(f_p.M_hat, pickup.K)
+    s_p = search_triplet(f_p.M_hat, pickup.K)
     out["search"] = (s_p.G, s_p.costs, time.perf_counter() - t0)
     for label, (Gs, costs, secs) in out.items():
         e_p = np.array([sign_free_rotation_error(triplet_cameras(G, f_p.M_hat)[0],
@@ -219,7 +219,7 @@ else:
 #
 # With Gaussian noise on W of 25% of its mean row standard deviation (the top of the range of
 # the paper's Fig. 3a), the penalised relaxation at one penalty ($\lambda=100$) refines into
-# a bad minimum of Dai's cost. The search (`corrective_triplets`) tries the relaxation at two
+# a bad minimum of Dai's cost. The search (`search_triplet`) tries the relaxation at two
 # penalties and then seeded random starts, and stops when the lowest cost has been reached
 # by two starts: it ends in a much cheaper minimum with a far smaller e_R (the cell below
 # prints both, and the ratio of the costs). The seed fixes every random start. The plot
@@ -233,7 +233,7 @@ if os.environ.get("NRSFM_DATA"):
     Wn, _ = centre_rows(data_tools.add_noise(pickup.W, 0.25, seed=0))
     f_n = factorize(Wn / working_scale(Wn), pickup.K)
     G_one, cost_one = relaxed_triplet(f_n.M_hat, pickup.K)
-    srch = corrective_triplets(f_n.M_hat, pickup.K, seed=0)
+    srch = search_triplet(f_n.M_hat, pickup.K, seed=0)
     e_one = sign_free_rotation_error(triplet_cameras(G_one, f_n.M_hat)[0], pickup.rotations)
     e_srch = sign_free_rotation_error(triplet_cameras(srch.G[0], f_n.M_hat)[0],
                                       pickup.rotations)

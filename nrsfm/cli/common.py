@@ -1,12 +1,5 @@
-"""What every ``nrsfm`` subcommand shares: the exit-code convention, one-line errors,
-argument validators (``--K``, ``--seed``, counts), the ``--rrd`` option and output-path
-checks, progress messages and the result report.
-
-Exit status: 0 success; 1 a failure while running (bad input file, unreadable data, failed
-write, an output folder that does not exist or is not writable); 2 a bad command line
-(argparse's errors, and :class:`UsageError` for what can only be checked after parsing:
-a wrong suffix, conflicting paths, a missing option); 130 interrupted.
-"""
+"""What the ``nrsfm`` subcommands share: exit statuses, one-line errors, argument validators,
+the options of every reconstruction, output-path checks and the result report."""
 
 from __future__ import annotations
 
@@ -16,19 +9,14 @@ import sys
 from pathlib import Path
 
 from ..io import atomic_output, check_output_path
-from ..stages.shape import SOLVERS
 
-__all__ = ["add_shape_solver_option", "EXIT_OK", "EXIT_ERROR", "EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_STATUS_HELP",
-           "UsageError", "Parser", "one_line", "fail", "positive_int", "seed",
-           "add_rrd_option", "rrd_path", "output_path", "say", "write_recording",
-           "print_report"]
-
-EXIT_OK = 0
-EXIT_ERROR = 1
-EXIT_USAGE = 2
+EXIT_ERROR = 1  # a failure while running: bad input file, failed write, ...
+EXIT_USAGE = 2  # a bad command line (argparse, or UsageError after parsing)
 EXIT_INTERRUPTED = 130
-EXIT_STATUS_HELP = ("Exit status: 0 success, 1 error (bad input, failed write), 2 bad command "
-                    "line, 130 interrupted. Every error is one line on stderr.")
+EXIT_STATUS_HELP = (
+    "Exit status: 0 success, 1 error (bad input, failed write), 2 bad command line, 130 "
+    "interrupted. Every error is one line on stderr."
+)
 
 
 class UsageError(ValueError):
@@ -39,8 +27,7 @@ class Parser(argparse.ArgumentParser):
     """argparse with one-line errors (no usage block), exit status 2."""
 
     def error(self, message):
-        fail(f"{self.prog}: error: {one_line(message)} (see '{self.prog} --help')",
-             EXIT_USAGE)
+        fail(f"{self.prog}: error: {one_line(message)} (see '{self.prog} --help')", EXIT_USAGE)
 
 
 def one_line(text):
@@ -55,46 +42,53 @@ def fail(line, code):
     raise SystemExit(code)
 
 
-def _integer(text, what):
+def _integer(text, what, minimum):
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {what}; got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {what}; got {text!r}") from None
+    if value < minimum:
+        need = "at least 1" if minimum else "non-negative"
+        raise argparse.ArgumentTypeError(f"must be {need}; got {value}")
+    return value
 
 
 def positive_int(text):
     """argparse type: an integer >= 1 (``--K``, counts, sizes)."""
-    value = _integer(text, "a positive integer")
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1; got {value}")
-    return value
+    return _integer(text, "a positive integer", 1)
 
 
 def seed(text):
     """argparse type: a non-negative integer (``--seed``)."""
-    value = _integer(text, "a non-negative integer")
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be non-negative; got {value}")
-    return value
+    return _integer(text, "a non-negative integer", 0)
 
 
-def add_rrd_option(p, default_name):
-    """``--rrd [PATH]``: also write a Rerun recording; without PATH, ``default_name``."""
-    p.add_argument("--rrd", metavar="PATH", nargs="?", const="",
-                   help="also write a Rerun recording (.rrd); without PATH: "
-                        f"out/{default_name} under the current folder (or $NRSFM_OUT)")
+def add_reconstruction_options(p, rrd_name, quiet=True):
+    """``--method``, ``--shape-solver``, ``--seed``, ``--rrd [PATH]`` (without PATH:
+    ``out/rrd_name``) and, if ``quiet``, ``--quiet``."""
+    from ..pipeline import METHODS
+    from ..stages.shape import SOLVERS
+
+    text = "the pipeline (default: organic)"
+    p.add_argument("--method", choices=sorted(METHODS), default="organic", help=text)
+    text = "shape-stage solver (default: bilinear; admm: the paper's continuation ADMM)"
+    p.add_argument("--shape-solver", choices=list(SOLVERS), help=text)
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    text = f"also write a Rerun recording; without PATH: out/{rrd_name} (or under $NRSFM_OUT)"
+    p.add_argument("--rrd", metavar="PATH", nargs="?", const="", help=text)
+    if quiet:
+        p.add_argument("--quiet", action="store_true", help="no progress messages")
 
 
 def output_path(path, what):
-    """The output file ``path`` (``~`` expanded), checked writable before the work.
-
-    Raises ValueError / OSError (exit status 1) when it cannot be written."""
+    """The output file ``path`` (``~`` expanded), checked writable before the work
+    (ValueError / OSError otherwise: exit status 1)."""
     return check_output_path(Path(path).expanduser(), what)
 
 
 def rrd_path(args, default):
-    """The checked ``--rrd`` target: the given path, or ``out/default`` when --rrd has no
-    value, or None without --rrd. A name not ending in ``.rrd`` is a :class:`UsageError`."""
+    """The checked ``--rrd`` target: the path given, ``out/default`` for ``--rrd`` alone, None
+    without ``--rrd``; a name not ending in ``.rrd`` is a :class:`UsageError`."""
     if args.rrd is None:
         return None
     if args.rrd == "":
@@ -107,19 +101,10 @@ def rrd_path(args, default):
     return output_path(path, "--rrd")
 
 
-def say(args):
-    """A progress printer (stderr), silent with ``--quiet``."""
-    if args.quiet:
-        return lambda message: None
-    return lambda message: print(message, file=sys.stderr, flush=True)
-
-
 def write_recording(path, write):
-    """Write a recording atomically: ``write(tmp)`` writes the ``.rrd`` at a temporary
-    path, renamed to ``path`` on success. Returns what ``write`` returns.
-
-    Raises OSError with a one-line message when the recording cannot be written."""
-    os.environ.setdefault("RUST_LOG", "off")   # rerun's own multi-line log on write errors
+    """``write(tmp)`` writes the ``.rrd`` at a temporary path, renamed to ``path`` on
+    success; returns what ``write`` returns. OSError (one line) when it cannot be written."""
+    os.environ.setdefault("RUST_LOG", "off")  # rerun's own multi-line log on write errors
     try:
         with atomic_output(path) as tmp:
             return write(tmp)
@@ -127,27 +112,26 @@ def write_recording(path, write):
         raise OSError(f"cannot write the recording {path}: {one_line(exc)}") from exc
 
 
+def save_rrd(result, path, seq=None):
+    """Write the recording of ``result`` (with ground truth ``seq``) to ``path``."""
+    from ..views.recording import save_recording
+
+    write_recording(path, lambda tmp: save_recording(result, tmp, sequence=seq))
+    print(f"  wrote Rerun recording {path} (open it with: rerun {path})")
+
+
 def _num(x):
     return f"{x:.4f}" if x >= 1e-3 else f"{x:.2e}"
 
 
 def print_report(result, seq=None):
-    """Print the result's summary (with its diagnostics' notes and warnings) and, given a
-    sequence with ground truth, the errors; returns the errors (a dict, empty without
-    ground truth)."""
+    """Print the result's summary and, given a sequence with ground truth, its errors;
+    returns the errors (a dict, empty without ground truth)."""
     print(result.summary())
-    errs = {}
-    if seq is not None and seq.shapes is not None:
-        errs = result.errors(seq.shapes, seq.rotations)
-        parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
-        if "e_R" in errs:
-            parts.append(f"e_R {_num(errs['e_R'])}")
-        print("  errors against ground truth: " + ", ".join(parts))
+    if seq is None or seq.shapes is None:
+        return {}
+    errs = result.errors(seq.shapes, seq.rotations)
+    parts = [f"e3d {_num(errs['e3d'])}", f"e3d (Akhter) {_num(errs['e3d_akhter'])}"]
+    parts += [f"e_R {_num(errs['e_R'])}"] if "e_R" in errs else []
+    print("  errors against ground truth: " + ", ".join(parts))
     return errs
-
-
-def add_shape_solver_option(p):
-    """``--shape-solver`` (every command that reconstructs)."""
-    p.add_argument("--shape-solver", choices=list(SOLVERS), default=None,
-                   help="shape-stage solver (default: bilinear; admm: the paper's "
-                        "continuation ADMM)")

@@ -23,8 +23,8 @@ from scipy.linalg import lapack
 
 from .relaxation import penalized_gram, triplets_from_gram
 
-__all__ = ["TripletSearch", "corrective_triplets", "refine_triplet", "search_triplet",
-           "triplet_cost", "triplet_residuals"]
+__all__ = ["TripletSearch", "refine_triplet", "search_triplet", "triplet_cost",
+           "triplet_residuals"]
 
 
 _EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)
@@ -325,9 +325,3 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
                          history=history, n_random=n_random, stopped=stopped,
                          miss_bound=min(1.0, 3.0 / n_random) if n_random else 1.0, Q=Q,
                          seconds=time.perf_counter() - t0)
-
-
-def corrective_triplets(M_hat, K, seed=0, hits=2, max_starts=40):
-    """The rotation stage's triplet search: :func:`search_triplet` with its penalties
-    :data:`SEARCH_LAMBDAS`, best (lowest Dai cost) first."""
-    return search_triplet(M_hat, K, seed=seed, hits=hits, max_starts=max_starts)

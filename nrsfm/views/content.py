@@ -1,26 +1,12 @@
 """What a recording of a reconstruction shows, as numpy arrays (no rerun, no matplotlib).
 
-:func:`recording_content` maps a :class:`nrsfm.Reconstruction` (and optionally its ground
-truth) to a :class:`RecordingContent`: the estimate aligned to the ground truth for display,
-per-frame errors, the rotation samples of every corrective triplet, the shape-stage
-history, singular values and a markdown report. The Rerun logging
-(:mod:`nrsfm.views.recording`) and the matplotlib figures (:mod:`nrsfm.views.figures`) both
-draw from it.
-
-Display alignment
------------------
-NRSfM recovers shapes and cameras up to a global rotation / reflection (and each frame's
-shape up to the camera's depth sign). To overlay estimate and ground truth:
-
-* shapes: each estimated frame is mapped onto the ground truth of that frame by a
-  similarity Procrustes (rotation, reflection, scale: :func:`nrsfm.geometry.align_similarity`)
-  -- the same alignment as the ``e3d`` metric, so the gap seen between the two point clouds
-  is what ``e3d`` measures. Both are drawn centred in the ground truth's world frame.
-* cameras (and every rotation sample): one global orthogonal ``Q`` minimising
-  ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2`` (the alignment of the ``e_R`` metric); the
-  displayed camera is ``R_est,f[:2] Q`` completed with ``r3 = r1 x r2``.
-
-Without ground truth nothing is aligned: the estimate is drawn as returned.
+:func:`recording_content` maps a :class:`nrsfm.Reconstruction` (and its ground truth) to a
+:class:`RecordingContent`, which the Rerun recording (:mod:`.recording`) and the figures
+(:mod:`.figures`) draw. Estimate and ground truth are overlaid as the metrics align them:
+each estimated shape by a per-frame similarity Procrustes onto the ground truth in its world
+frame (as ``e3d``), the cameras and rotation samples by one global orthogonal ``Q``
+minimising ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2`` (as ``e_R``), completed with
+``r3 = r1 x r2``. Without ground truth the estimate is drawn as returned.
 """
 
 from __future__ import annotations
@@ -29,21 +15,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RecordingContent", "recording_content", "HISTORY_KEYS"]
-
 #: Shape-stage history quantities drawn, in this order (ADMM | bilinear solver).
 HISTORY_KEYS = ("cost", "data_term", "residual", "rho", "grad_norm")
-#: Camera distance from the origin and axis length, in multiples of the shapes' extent.
-CAMERA_DISTANCE = 1.5
-AXIS_LENGTH = 0.4
 
 
 @dataclass
 class RecordingContent:
-    """Everything a recording shows, as numpy arrays (no rerun objects).
-
-    Shapes are (F, P, 3) point arrays (rerun's layout), rotations (F, 3, 3).
-    """
+    """Everything a recording shows: shapes as (F, P, 3) point arrays (rerun's layout),
+    rotations (F, 3, 3), display-aligned."""
 
     n_frames: int
     n_points: int
@@ -55,21 +34,21 @@ class RecordingContent:
     cameras_gt: np.ndarray | None = None
     camera_distance: float = 1.0
     axis_length: float = 0.3
-    tracks: np.ndarray | None = None          # (F, P, 2) measured (centred) W
-    filled: np.ndarray | None = None          # (F, P) bool: not observed, the 3D a fill
-    fill_gain: np.ndarray | None = None       # (P,) the fill's noise gain (reliability)
-    fill_spread: np.ndarray | None = None     # (P,) neighbour fills' spread (NaN: not so filled)
-    reprojected: np.ndarray | None = None     # (F, P, 2) R_f X_f
-    triplet_rotations: np.ndarray | None = None   # (K, F, 3, 3) registered, display-aligned
-    triplet_kept: np.ndarray | None = None        # (K, F) bool
-    triplet_distance: np.ndarray | None = None    # (K, F) chordal distance to the average
+    tracks: np.ndarray | None = None  # (F, P, 2) measured (centred) W
+    filled: np.ndarray | None = None  # (F, P) bool: not observed, the 3D is a fill
+    fill_gain: np.ndarray | None = None  # (P,) the fill's noise gain
+    fill_spread: np.ndarray | None = None  # (P,) spread of the neighbour fills (NaN: none)
+    reprojected: np.ndarray | None = None  # (F, P, 2) R_f X_f
+    triplet_rotations: np.ndarray | None = None  # (K, F, 3, 3) registered samples
+    triplet_kept: np.ndarray | None = None  # (K, F) bool
+    triplet_distance: np.ndarray | None = None  # (K, F) chordal distance to the average
     triplet_coefficients: np.ndarray | None = None  # (K, F)
-    averaged: np.ndarray | None = None            # (F, 3, 3) display-aligned
+    averaged: np.ndarray | None = None  # (F, 3, 3)
     sign_from_smoothness: np.ndarray | None = None  # (F,) bool
     rotations_gt_display: np.ndarray | None = None
     errors_per_frame: dict = field(default_factory=dict)
     errors: dict = field(default_factory=dict)
-    admm: dict = field(default_factory=dict)      # name -> (n_iter,) float array
+    admm: dict = field(default_factory=dict)  # shape-stage history: name -> (n_iter,)
     singular_values: dict = field(default_factory=dict)  # name -> 1-D array
     report: str = ""
     aligned: bool = False
@@ -82,7 +61,7 @@ def complete_rotations(R2):
 
 
 def _gt_world(sequence):
-    """Ground-truth shapes in the ground truth's world frame, (F, 3, P), or None."""
+    """Ground-truth shapes in the ground truth's world frame, centred, (F, 3, P), or None."""
     if sequence is None or sequence.shapes is None:
         return None
     if getattr(sequence, "world_shapes", None) is not None:
@@ -90,42 +69,41 @@ def _gt_world(sequence):
     elif sequence.rotations is not None:
         X = np.asarray(sequence.rotations, float).transpose(0, 2, 1) @ sequence.shapes
     else:
-        X = np.asarray(sequence.shapes, float)    # no camera: camera frame is the world
+        X = np.asarray(sequence.shapes, float)  # no camera: the camera frame is the world
     return X - X.mean(axis=2, keepdims=True)
 
 
-def _stage_value(stage, name, default=None):
-    return getattr(stage, name, default) if stage is not None else default
+def _get(stage, name):
+    return getattr(stage, name, None) if stage is not None else None
 
 
 def _world_content(result, sequence):
-    """The 3D world part of the content: aligned shapes, cameras, image, and ``Q``."""
-    from ..geometry import align_similarity as similarity_align
+    """The 3D world part of the content (aligned shapes, cameras, image) and ``Q``."""
+    from ..geometry import align_similarity
     from ..metrics import camera_alignment
 
     F, P = result.n_frames, result.n_points
-    X_est = np.asarray(result.shapes, float)
-    R_est = np.asarray(result.rotations, float)
+    X_est, R_est = np.asarray(result.shapes, float), np.asarray(result.rotations, float)
     X_gt = _gt_world(sequence)
-    R_gt = None if sequence is None or sequence.rotations is None else np.asarray(
-        sequence.rotations, float)
-    X_disp = (similarity_align(X_est, X_gt) if X_gt is not None
-              else X_est - X_est.mean(axis=2, keepdims=True))
+    R_gt = None if sequence is None or sequence.rotations is None else sequence.rotations
+    R_gt = None if R_gt is None else np.asarray(R_gt, float)
+    if X_gt is not None:
+        X_disp = align_similarity(X_est, X_gt)
+    else:
+        X_disp = X_est - X_est.mean(axis=2, keepdims=True)
     Q = camera_alignment(R_est, R_gt) if R_gt is not None else np.eye(3)
     ref = X_gt if X_gt is not None else X_disp
     extent = float(np.max(np.linalg.norm(ref, axis=1))) if ref.size else 1.0
     extent = extent if extent > 0 else 1.0
-    c = RecordingContent(n_frames=F, n_points=P, frames=np.arange(F),
-                         shapes_est=X_disp.transpose(0, 2, 1).copy(),
-                         shapes_gt=None if X_gt is None else X_gt.transpose(0, 2, 1).copy(),
-                         edges=None if sequence is None or sequence.edges is None
-                         else np.asarray(sequence.edges, int),
-                         cameras_est=complete_rotations(R_est[..., :2, :] @ Q),
-                         cameras_gt=None if R_gt is None else complete_rotations(R_gt),
-                         camera_distance=CAMERA_DISTANCE * extent,
-                         axis_length=AXIS_LENGTH * extent, aligned=X_gt is not None)
-    Wt = np.asarray(result.W, float).reshape(F, 2, P)
-    c.tracks = Wt.transpose(0, 2, 1).copy()
+    c = RecordingContent(F, P, np.arange(F), X_disp.transpose(0, 2, 1).copy())
+    c.shapes_gt = None if X_gt is None else X_gt.transpose(0, 2, 1).copy()
+    edges = None if sequence is None else sequence.edges
+    c.edges = None if edges is None else np.asarray(edges, int)
+    c.cameras_est = complete_rotations(R_est[..., :2, :] @ Q)
+    c.cameras_gt = None if R_gt is None else complete_rotations(R_gt)
+    c.camera_distance, c.axis_length = 1.5 * extent, 0.4 * extent  # multiples of the extent
+    c.aligned = X_gt is not None
+    c.tracks = np.asarray(result.W, float).reshape(F, 2, P).transpose(0, 2, 1).copy()
     c.reprojected = (R_est[:, :2] @ X_est).transpose(0, 2, 1).copy()
     if getattr(result, "observed", None) is not None:
         c.filled = ~np.asarray(result.observed, bool)
@@ -148,30 +126,25 @@ def _add_errors(c, result, sequence, R_gt):
 
 def _add_rotation_stage(c, result, Q, R_gt):
     """Registered samples per triplet, the filter's choice, the average (display-aligned)."""
-    def disp_rot(R):
-        return complete_rotations(np.asarray(R, float)[..., :2, :] @ Q)
-
     rs, F = result.rotation_stage, result.n_frames
-    registered = _stage_value(rs, "registered")
-    averaged = _stage_value(rs, "averaged")
+    registered, averaged = _get(rs, "registered"), _get(rs, "averaged")
     if registered is not None:
         registered = np.asarray(registered, float)
         K = registered.shape[0]
-        c.triplet_rotations = disp_rot(registered)
-        kept = _stage_value(rs, "kept")
-        c.triplet_kept = (np.ones((K, F), bool) if kept is None
-                          else np.asarray(kept, bool).reshape(K, F))
+        c.triplet_rotations = complete_rotations(registered[..., :2, :] @ Q)
+        kept = _get(rs, "kept")
+        c.triplet_kept = np.ones((K, F), bool) if kept is None else np.asarray(kept, bool)
+        c.triplet_kept = c.triplet_kept.reshape(K, F)
         final = complete_rotations(averaged if averaged is not None else result.rotations)
-        c.triplet_distance = np.linalg.norm(complete_rotations(registered) - final[None],
-                                            axis=(2, 3))
-        coeff = _stage_value(rs, "coefficients")
-        if coeff is not None:
-            c.triplet_coefficients = np.asarray(coeff, float).reshape(K, F)
-    flips = _stage_value(rs, "sign_from_smoothness")
-    if flips is not None:
-        c.sign_from_smoothness = np.asarray(flips, bool).ravel()
+        c.triplet_distance = np.linalg.norm(
+            complete_rotations(registered) - final[None], axis=(2, 3)
+        )
+        if _get(rs, "coefficients") is not None:
+            c.triplet_coefficients = np.asarray(rs.coefficients, float).reshape(K, F)
+    if _get(rs, "sign_from_smoothness") is not None:
+        c.sign_from_smoothness = np.asarray(rs.sign_from_smoothness, bool).ravel()
     if averaged is not None:
-        c.averaged = disp_rot(averaged)
+        c.averaged = complete_rotations(np.asarray(averaged, float)[..., :2, :] @ Q)
     if rs is not None and R_gt is not None:
         c.rotations_gt_display = complete_rotations(R_gt)
 
@@ -181,41 +154,27 @@ def _add_shape_stage(c, result):
     from ..stages.shape import phi
 
     ss = result.shape_stage
-    history = _stage_value(ss, "history") or {}
+    history = _get(ss, "history") or {}
     for key in list(HISTORY_KEYS) + sorted(k for k in history if k not in HISTORY_KEYS):
-        if key in history:
-            v = np.asarray(history[key], float).ravel()
-            if v.size:
-                c.admm[key] = v
+        v = np.asarray(history.get(key, []), float).ravel()
+        if v.size:
+            c.admm[key] = v
     c.singular_values["W"] = np.asarray(result.factorization.singular_values, float)
-    sv_x = _stage_value(ss, "X_init_singular_values")
+    sv_x = _get(ss, "X_init_singular_values")
     if sv_x is None:
-        sv_x = np.linalg.svd(phi(np.asarray(result.X_init, float) / result.scale),
-                             compute_uv=False)
+        X_init = np.asarray(result.X_init, float) / result.scale
+        sv_x = np.linalg.svd(phi(X_init), compute_uv=False)
     c.singular_values["X_init"] = np.asarray(sv_x, float)
-    theta = _stage_value(ss, "theta")
-    if theta is not None:
-        c.singular_values["theta"] = np.asarray(theta, float).ravel()
+    if _get(ss, "theta") is not None:
+        c.singular_values["theta"] = np.asarray(ss.theta, float).ravel()
 
 
 def recording_content(result, sequence=None):
-    """Compute what a recording of ``result`` shows (no rerun calls).
-
-    Parameters
-    ----------
-    result : nrsfm.Reconstruction
-        Stages may be missing (``rotation_stage`` / ``shape_stage`` None): their parts are
-        left out.
-    sequence : nrsfm.sequence.Sequence, optional
-        Ground truth (shapes, rotations, skeleton edges). Frame count must match.
-
-    Returns
-    -------
-    RecordingContent
-    """
+    """The :class:`RecordingContent` of the :class:`nrsfm.Reconstruction` ``result`` (the
+    parts of a stage that did not run left out), with the ground truth of ``sequence``
+    (shapes, rotations, skeleton edges; as many frames) if given."""
     if sequence is not None and sequence.n_frames != result.n_frames:
-        raise ValueError(f"sequence has {sequence.n_frames} frames, result has "
-                         f"{result.n_frames}")
+        raise ValueError(f"sequence has {sequence.n_frames} frames, result has {result.n_frames}")
     c, Q, R_gt = _world_content(result, sequence)
     _add_errors(c, result, sequence, R_gt)
     _add_rotation_stage(c, result, Q, R_gt)
@@ -224,59 +183,48 @@ def recording_content(result, sequence=None):
     return c
 
 
-def _fmt(v):
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    if isinstance(v, np.ndarray):
-        return f"array{v.shape}"
-    if isinstance(v, dict):
-        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items()) or "{}"
-    return str(v)
-
-
-def _stage_lines(result, c):
-    rs, ss = result.rotation_stage, result.shape_stage
-    lines = ["## Stages", "",
-             f"- rotation stage: {'ran' if rs is not None else 'skipped (rotations given)'}",
-             f"- shape stage: {'ran' if ss is not None else 'skipped (pseudo-inverse + rank-K truncation)'}"]
-    if ss is not None:
-        solver = ss.solver
-        lines.append(f"- shape solver {solver}: {_stage_value(ss, 'n_iter')} iterations, "
-                     f"converged = {_stage_value(ss, 'converged')}")
-        if _stage_value(ss, "grad_norm") is not None:
-            lines.append(f"- shape objective {_stage_value(ss, 'objective'):.6g}, relative "
-                         f"gradient norm {_stage_value(ss, 'grad_norm'):.3g} (first-order "
-                         "optimality)")
-    if c.triplet_kept is not None:
-        lines.append(f"- rotation samples kept by the filter: {int(c.triplet_kept.sum())} of "
-                     f"{c.triplet_kept.size}")
-    return lines
+def _table(head, rows):
+    """A markdown section with a two-column table; ``head``: "title|column|column"."""
+    title, a, b = head.split("|")
+    return ["", f"## {title}", "", f"| {a} | {b} |", "| --- | --- |"] + rows
 
 
 def _report(result, sequence, c):
     """The run's report, markdown: errors, stages, parameters, timings, display notes."""
+    rs, ss = result.rotation_stage, result.shape_stage
     name = getattr(sequence, "name", None) or "(no ground truth)"
-    lines = [f"# nrsfm run: `{result.method}` on {name}", "",
-             f"F = {result.n_frames} frames, P = {result.n_points} points, K = {result.K}, "
-             f"scale = {result.scale:.6g}", "", "## Errors", "", "| metric | value |",
-             "| --- | --- |"]
-    lines += [f"| {k} | {v:.6g} |" for k, v in c.errors.items()]
-    lines += [""] + _stage_lines(result, c)
-    lines += ["", "## Parameters", "", "| parameter | value |", "| --- | --- |"]
-    params = dict(method=result.method, K=result.K, seed=result.seed,
-                  rotations_given=result.rotation_stage is None,
-                  shape_solver=result.settings.shape_solver,
-                  scale=result.scale)
-    lines += [f"| {k} | {_fmt(v)} |" for k, v in params.items()]
-    lines += ["", "## Timings (s)", "", "| stage | seconds |", "| --- | --- |"]
-    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    size = f"F = {result.n_frames} frames, P = {result.n_points} points, K = {result.K}"
+    lines = [f"# nrsfm run: `{result.method}` on {name}", "", f"{size}, scale = {result.scale:.6g}"]
+    lines += _table("Errors|metric|value", [f"| {k} | {v:.6g} |" for k, v in c.errors.items()])
+    lines += ["", "## Stages", ""]
+    lines.append(f"- rotation stage: {'ran' if rs is not None else 'skipped (rotations given)'}")
+    shape = "ran" if ss is not None else "skipped (pseudo-inverse + rank-K truncation)"
+    lines.append(f"- shape stage: {shape}")
+    if ss is not None:
+        n_iter, converged = _get(ss, "n_iter"), _get(ss, "converged")
+        lines.append(f"- shape solver {ss.solver}: {n_iter} iterations, converged = {converged}")
+        if _get(ss, "grad_norm") is not None:
+            optimality = f"relative gradient norm {ss.grad_norm:.3g} (first-order optimality)"
+            lines.append(f"- shape objective {ss.objective:.6g}, {optimality}")
+    if c.triplet_kept is not None:
+        kept = c.triplet_kept
+        lines.append(f"- rotation samples kept by the filter: {int(kept.sum())} of {kept.size}")
+    params = dict(method=result.method, K=result.K, seed=result.seed, rotations_given=rs is None)
+    params.update(shape_solver=result.settings.shape_solver, scale=f"{result.scale:.6g}")
+    lines += _table("Parameters|parameter|value", [f"| {k} | {v} |" for k, v in params.items()])
+    lines += _table(
+        "Timings (s)|stage|seconds", [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    )
     if getattr(result, "diagnostics", None) is not None:
         lines += ["", "## Diagnostics", "", "```", result.diagnostics.summary(), "```"]
-    lines += ["", "## Display", "",
-              ("Estimated shapes are similarity-aligned per frame onto the ground truth (as in "
-               "e3d)." if c.aligned else "No ground-truth shapes: shapes drawn as estimated."),
-              ("Cameras and rotation samples: one global orthogonal alignment onto the "
-               "ground-truth cameras (as in e_R)." if c.cameras_gt is not None else
-               "No ground-truth cameras: cameras and rotation samples drawn as estimated."),
-              "Singular values are in the solver's units (input / scale)."]
+    shapes = "Estimated shapes are similarity-aligned per frame onto the ground truth"
+    shapes += " (as in e3d)."
+    if not c.aligned:
+        shapes = "No ground-truth shapes: shapes drawn as estimated."
+    cameras = "Cameras and rotation samples: one global orthogonal alignment onto the ground-truth"
+    cameras += " cameras (as in e_R)."
+    if c.cameras_gt is None:
+        cameras = "No ground-truth cameras: cameras and rotation samples drawn as estimated."
+    lines += ["", "## Display", "", shapes, cameras]
+    lines.append("Singular values are in the solver's units (input / scale).")
     return "\n".join(lines)

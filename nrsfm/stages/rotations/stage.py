@@ -11,7 +11,7 @@ import numpy as np
 
 from ...geometry import average_rotations
 from ...validation import check_fraction, check_integer, check_positive
-from ..corrective import TripletSearch, corrective_triplets, refine_triplet, triplet_cost
+from ..corrective import TripletSearch, refine_triplet, search_triplet, triplet_cost
 from .lifting import filter_rotations, register_rotations, resolve_depth_signs
 from .lifting import rotations_from_triplets
 from .subspace import determined_subspace, effective_K, lift_triplets
@@ -218,7 +218,7 @@ def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progres
         M = sub.M
         say(f"W has numerical rank {sub.rank} < 3K = {3 * K}: rotations from the "
             f"determined {sub.rank}-dimensional subspace, {k} triplet(s)")
-    search = corrective_triplets(M, k, seed=seed, hits=st.hits, max_starts=st.max_starts)
+    search = search_triplet(M, k, seed=seed, hits=st.hits, max_starts=st.max_starts)
     say(f"best corrective triplet: Dai cost {search.costs[0]:.4g} (start {search.starts[0]})")
     G, spans = search.G[:1], np.zeros((0, 2), int)
     if not single and k > 1:                           # step 1: K - 1 window triplets
@@ -231,13 +231,12 @@ def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progres
     lap("lift")
     registered, registration, flips, mirrored = register_triplets(per_triplet, valid)
     lap("registration")
-    weights = valid.astype(float)                                      # step 4
-    pre = average_rotations(registered, valid, weights, st.max_iter, st.eps)
+    pre = average_rotations(registered, valid, None, st.max_iter, st.eps)   # step 4
     kept, dist = filter_rotations(registered, pre, st.delta, valid=valid)
     kept[0] |= ~kept.any(axis=0) & valid[0]
     lap("filtering")
-    averaged, avg = average_rotations(registered, kept, np.where(weights > 0, weights, 1.0),
-                                      st.max_iter, st.eps, return_info=True)   # step 5
+    averaged, avg = average_rotations(registered, kept, None, st.max_iter, st.eps,
+                                      return_info=True)                # step 5
     if np.any(avg["empty"]):                           # frames with no usable sample
         averaged = _fill_empty(averaged, avg["empty"])
     lap("averaging")

@@ -9,7 +9,7 @@ the same weights; ``nuclear`` N = 0, one weight ``sum_i theta_i sigma_i / sum_i 
 
 The ADMM is a continuation (rho grows 10 % per iteration): its answer is where the path
 freezes. Its thresholds are absolute, so :func:`solve_admm` runs it on ``W / s``,
-``s = ||W||_F / TARGET_FROBENIUS``, and scales the shapes back: exactly scale invariant,
+``s = ||W||_F / TARGET_FROBENIUS``, and scales the shapes back: scale invariant to rounding,
 with 170 a setting of this solver.
 """
 
