@@ -7,8 +7,8 @@ Layers and data flow: ``docs/architecture.md``.
 from .diagnostics import NRSfMWarning
 from .metrics import e3d, e3d_akhter, rotation_error
 from .pipeline import Reconstruction, reconstruct
-from .settings import (METHODS, AdmmSettings, BilinearSettings, MeasurementSettings,
-                       RotationSettings, Settings)
+from .settings import METHODS, AdmmSettings, BilinearSettings, MeasurementSettings
+from .settings import RotationSettings, Settings
 
 __version__ = "0.1.0"
 

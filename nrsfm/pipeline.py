@@ -314,8 +314,7 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
     >>> bool(res.errors(seq.shapes)["e3d"] < 1e-3)
     True
     """
-    settings = _settings(settings, method=method, shape_solver=shape_solver,
-                         missing=missing)
+    settings = _settings(settings, method=method, shape_solver=shape_solver, missing=missing)
     # every input check before any computation (the completion can take a while)
     W, K, rotations = check_problem(W, K, rotations, settings.measurement.missing)
     say = _progress_printer(progress)
@@ -329,29 +328,26 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
         with _timed(timings, "factorize"):
             meas = measure(W, K)
         fact = meas.factorization
-        say(f"rank-{3 * K} factorisation of {W.shape[0]}x{W.shape[1]} W: residual "
-            f"{fact.residual:.3g}")
-        rotation_stage = None
+        say(f"rank-{3 * K} factorisation of W {W.shape}: residual {fact.residual:.3g}")
+        rotation_stage, single = None, METHODS[settings.method].single
         if rotations is None:
             with _timed(timings, "rotations"):
-                rotation_stage = estimate_rotations(
-                    fact.M_hat, K, settings.rotation, single=METHODS[settings.method].single,
-                    seed=seed, progress=say)
+                rotation_stage = estimate_rotations(fact.M_hat, K, settings.rotation,
+                                                    single=single, seed=seed, progress=say)
             rotations = rotation_stage.rotations
         with _timed(timings, "shape"):                # the settings' solver, or none
             if settings.shape is None:
                 shape_stage = solve_pseudo_inverse(meas.Wn, rotations, K)
             else:
                 shape_stage = settings.shape.solve(meas.Wn, rotations, K, settings.prior, say)
-    amp = (depth_amplification(rotations, shape_stage.shapes, K)
-           if settings.shape is not None else None)
+    shapes = shape_stage.shapes
+    amp = None if settings.shape is None else depth_amplification(rotations, shapes, K)
     diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
     if diagnostics.flags:
         warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
-        raise ValueError(f"the shapes overflow in the input's units (max|W| = "
-                         f"{np.abs(W).max():.3g}); rescale W")
+        raise ValueError(f"the shapes overflow in W's units (max|W| {np.abs(W).max():.3g})")
     spread = None
     if completion is not None and settings.measurement.fill == "neighbours":
         with _timed(timings, "fill"):

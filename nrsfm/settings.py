@@ -23,8 +23,7 @@ from .stages.rotations import RotationSettings
 from .stages.shape import SOLVERS, AdmmSettings, BilinearSettings
 from .validation import check_choice
 
-__all__ = ["KEYWORDS", "METHODS", "AdmmSettings", "BilinearSettings", "MeasurementSettings",
-           "Method", "RotationSettings", "Settings"]
+__all__ = ["KEYWORDS", "METHODS", "Settings"]
 
 
 class Method(NamedTuple):

@@ -59,10 +59,6 @@ def test_observed_mask_pairs_coordinates_and_names_sparse_rows():
     W3[2:, 5] = np.nan  # point 5 seen once
     with pytest.raises(ValueError, match="point 5 is observed in 1 frames"):
         observed_mask(W3)
-    W4 = _low_rank(F=10, P=8)
-    W4[0, 0] = np.inf
-    with pytest.raises(ValueError, match="infinite"):
-        observed_mask(W4)
 
 
 def test_check_measurements_allow_missing():

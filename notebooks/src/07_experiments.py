@@ -5,13 +5,12 @@
 # and PNG plots: the MoCap table beside the paper's figures and Dai et al.'s code run by a
 # peer, Table 1 (pseudo-inverse shapes), Table 3 (rotation ablation, with ground-truth
 # rotations as a row), noise on pickup (Fig. 3a-b), missing data (Fig. 3c), the N ablation
-# (Fig. 3d), a K sweep and an automatic K from W alone.
+# (Fig. 3d), a K sweep, and the study behind the shape stage's default.
 #
 # ```bash
 # nrsfm benchmark --data $NRSFM_DATA/mocap --out out/bench            # full set
 # nrsfm benchmark --data $NRSFM_DATA/mocap --out out/bench --quick    # CI set
 # nrsfm benchmark ... --workers 2                                     # local processes
-# nrsfm benchmark ... --scheduler tcp://host:8786                     # a Dask cluster
 # ```
 #
 # Every experiment is a list of independent tasks (`nrsfm.experiments.Task`): one
@@ -42,7 +41,7 @@ HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
 if not HAVE_DATA:
     assert not os.environ.get("CI"), "CI must set NRSFM_DATA to the folder holding mocap/"
 SEQUENCES = ["pickup"] if HAVE_DATA else ["synthetic-3-80-30-2"]
-ONLY = ["mocap", "pseudo_inverse", "missing", "n_ablation", "auto_k"]
+ONLY = ["mocap", "pseudo_inverse", "missing", "n_ablation"]
 OVERRIDES = {"missing_patterns": ("uniform",)}
 OUT = output_path("07_experiments")
 for k, v in EXPERIMENTS.items():

@@ -23,8 +23,7 @@ from scipy.linalg import lapack
 
 from .relaxation import penalized_gram, triplets_from_gram
 
-__all__ = ["TripletSearch", "refine_triplet", "search_triplet", "triplet_cost",
-           "triplet_residuals"]
+__all__ = ["TripletSearch", "refine_triplet", "search_triplet", "triplet_cost"]
 
 
 _EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)

@@ -17,8 +17,7 @@ import numpy as np
 
 from ..noise import noise_from_singular_values
 
-__all__ = ["Factorization", "Measurements", "factorize", "left_singular", "measure",
-           "power_of_two_scale"]
+__all__ = ["Factorization", "Measurements", "factorize", "measure"]
 
 #: Frobenius norm of the W the stages work on (see the module docstring)
 WORKING_FROBENIUS = 170.0

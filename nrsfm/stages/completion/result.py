@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 #: A track is *determined* when its fill amplifies measurement noise at most this much
-#: (:func:`~nrsfm.stages.completion.factorisation.fill_gain`); a track seen in a few frames
+#: (:func:`~nrsfm.stages.completion.fill_gain`); a track seen in a few frames
 #: is filled by an extrapolation whose gain grows without bound, and its 3D cannot be trusted.
 MAX_GAIN = 3.0
 

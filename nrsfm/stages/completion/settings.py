@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...validation import check_choice
-from .lags import check_lags
+from .solvers import check_lags
 
 MISSING = ("complete", "error")
 COMPLETIONS = ("auto", "factorisation", "soft_impute")

@@ -16,6 +16,4 @@ from .lifting import FLIP, MIRROR, filter_rotations, register_rotations
 from .lifting import resolve_depth_signs, rotations_from_triplets
 from .stage import RotationResult, RotationSettings, estimate_rotations
 
-__all__ = ["FLIP", "MIRROR", "RotationResult", "RotationSettings", "estimate_rotations",
-           "filter_rotations", "register_rotations", "resolve_depth_signs",
-           "rotations_from_triplets"]
+__all__ = ["RotationResult", "RotationSettings", "estimate_rotations"]

@@ -9,8 +9,7 @@ import numpy as np
 
 from ...geometry import procrustes_so3, rotation_angle
 
-__all__ = ["DEGENERATE_CROSS", "DEGENERATE_ROW", "FLIP", "MIRROR", "filter_rotations",
-           "register_rotations", "resolve_depth_signs", "rotations_from_triplets"]
+__all__ = ["filter_rotations", "register_rotations", "resolve_depth_signs"]
 
 FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
 MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness

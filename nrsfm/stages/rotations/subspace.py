@@ -15,8 +15,7 @@ import numpy as np
 
 from ..corrective import search_triplet
 
-__all__ = ["DETERMINED_RTOL", "Subspace", "determined_subspace", "effective_K",
-           "lift_triplets", "lower_minimum", "transposed_cost"]
+__all__ = ["determined_subspace", "effective_K", "lower_minimum", "transposed_cost"]
 
 #: singular values of W below ``DETERMINED_RTOL * s_1`` count as zero (float64 rounding
 #: leaves about 1e-16 s_1, perturbations of 1e-7 of W's entries about 1e-8 s_1)

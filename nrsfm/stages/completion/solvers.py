@@ -1,31 +1,178 @@
-"""Missing data at the scale of video: low-rank factorisation of the observed entries.
+"""The two completions of W, and the time lags that they share (paper Sec. 4e-ii).
 
-The measurement model (Eq. 1) with the translation t explicit, fitted to the observed entries
-with a small ridge (the bilinear form of a nuclear norm, Cabral et al., ICCV 2013):
+W (2F, P) comes checked by :func:`nrsfm.validation.check_problem`, NaN marking a missing
+entry. A missing observation is a (frame, point) pair: both coordinates go together, so the
+mask is ``observed`` (F, P). A frame must observe at least 3 points (an orthographic camera
+and its translation) and a point must be observed in at least 2 frames (its depth).
 
-    minimise_{M, B, t}  1/2 ||P_Omega(W - M B - t 1')||_F^2 + lam/2 (||M||_F^2 + ||B||_F^2),
+The time-lagged matrix of W (2F, P) for lags ``d_1, ..., d_n`` (frames) is
 
-M (2F, r), B (r, P), by alternating exact least squares (Okatani, Yoshida & Deguchi, ICCV
+    H(W) = [S_{d_1} W, ..., S_{d_n} W]      (2F, n P),   S_d: frames shifted by d,
+
+edges repeated. With the lags ``(-1, 0, 1)`` a missing point is seen through its own
+trajectory at the adjacent frames as well as through the other points (the rows of H stay
+low-rank when the trajectories are smooth); ``(0,)`` is W itself (frames in any order). Both
+completions fit H(W) and fill a missing entry with the mean of its copies' fits.
+
+Factorisation (:func:`complete_low_rank`, at the scale of video): the measurement model
+(Eq. 1) with the translation t explicit, fitted to the observed entries with a small ridge
+(the bilinear form of a nuclear norm, Cabral et al., ICCV 2013):
+
+    minimise_{M, B, t}  1/2 ||P_Omega(H(W) - M B - t 1')||_F^2 + lam/2 (||M||_F^2 + ||B||_F^2),
+
+M (2F, r), B (r, n P), by alternating exact least squares (Okatani, Yoshida & Deguchi, ICCV
 2011), no SVD after the start. The symmetries that only the ridge pins (``M -> M G``, ``B ->
 G^-1 B``; ``B -> B - c 1'``, ``t -> t + M c``), along which alternation crawls (Buchanan &
 Fitzgibbon, CVPR 2005), are fixed in every sweep, and the sweep is extrapolated by
 ``k^(1/3)`` when that lowers the cost (Bro's line search). M and t are fitted on the
 *determined* tracks (fill gain at most ``MAX_GAIN``), every b_p then under their prior.
+
+Soft-impute (:func:`complete_measurements`): nuclear-norm completion with free per-row
+offsets t (the per-frame translation), every copy of a missing entry kept equal:
+
+    minimise_{L, t}  1/2 ||P_Omega(H(W) - L - t 1')||_F^2 + tau ||L||_*.
+
+Soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010) fills the missing entries with the
+current estimate, takes the row means as t, soft-thresholds the singular values of the
+centred H, averages the copies of each entry, and repeats; tau is continued from ``sigma_1 /
+10`` down to ``TAU_FRACTION sigma_1`` (sigma_1 of the mean-filled, centred H), with warm
+starts (Cabral et al.'s rank continuation, ICCV 2013). Scale-equivariant.
 """
 
 from __future__ import annotations
 
+import operator
+from dataclasses import dataclass
+
 import numpy as np
 
-from .lags import NO_LAGS, lag_copies, observed_entries
+from ...linalg import weighted_svt
 from .result import MAX_GAIN, Completion
 
+NEIGHBOUR_LAGS = (-1, 0, 1)
+NO_LAGS = (0,)
+LAG_RATIO = 2  # lags when a frame observes fewer than this many points per unknown
 #: ridge as a fraction of sigma_1
 LAM_FRACTION = 1e-4
 #: rounds of (choose the determined tracks, fit M on them)
 MAX_ROUNDS = 4
 #: determined tracks per dimension of b_p needed to estimate the prior of the short tracks
 PRIOR_SAMPLES = 10
+#: final threshold as a fraction of sigma_1; continuation stages; tolerance; iteration cap
+TAU_FRACTION, N_STAGES, TOL, MAX_ITER = 1e-3, 8, 1e-6, 500
+
+
+@dataclass(frozen=True)
+class Copies:
+    """The entries of the lagged matrix H (2F, n P) as copies of W's (2F, P) entries, as
+    index arrays (all None for the lags ``(0,)``, where H is W): ``H = W.ravel()[gather]``,
+    the same for the (F, P) mask with ``gather_mask``; ``order`` the entries of H lag by
+    lag, ``target`` the flat index in W of each, ``counts`` the copies of each entry of W
+    (an edge frame is repeated)."""
+
+    lags: tuple
+    gather: np.ndarray = None
+    gather_mask: np.ndarray = None
+    order: np.ndarray = None
+    target: np.ndarray = None
+    counts: np.ndarray = None
+
+    def lag(self, Z, mask=False):
+        """H of Z (2F, P), or of an (F, P) mask: a new array."""
+        if self.gather is None:
+            return np.array(Z)
+        return Z.ravel()[self.gather_mask if mask else self.gather]
+
+    def mean(self, L, shape):
+        """The mean of the copies of each entry of a (2F, P) ``shape`` from L shaped like H."""
+        if self.gather is None:
+            return np.array(L).reshape(shape)
+        size = int(np.prod(shape))
+        return (np.bincount(self.target, L.ravel()[self.order], size) / self.counts).reshape(shape)
+
+
+def check_lags(lags):
+    """``lags`` as a tuple of int; ValueError (naming them) unless distinct and with 0."""
+    try:
+        out = tuple(operator.index(d) for d in lags)
+    except TypeError:
+        out = ()
+    if 0 not in out or len(set(out)) != len(out):
+        raise ValueError(f"lags must be distinct integers including 0; got {lags!r}")
+    return out
+
+
+def choose_lags(observed, rank):
+    """Temporal lags for completing W at rank r, from its (F, P) observation mask alone.
+
+    Each frame's two rows and offset (r + 1 unknowns) are fitted to the points the frame
+    observes. When the frame observing the fewest points has fewer than ``LAG_RATIO * (r +
+    1)`` of them (MoCap: 41 markers at r = 3K = 30-36), its own observations barely
+    determine its rows and :data:`NEIGHBOUR_LAGS` add its neighbours'; otherwise (dense
+    tracks) :data:`NO_LAGS`.
+    """
+    fewest = int(np.asarray(observed, bool).sum(axis=1).min())
+    return NEIGHBOUR_LAGS if fewest < LAG_RATIO * (int(rank) + 1) else NO_LAGS
+
+
+def lag_copies(F, P, lags):
+    """The :class:`Copies` of the lagged matrix of a (2F, P) W for ``lags`` (checked)."""
+    lags = check_lags(lags)
+    if lags == NO_LAGS:
+        return Copies(lags)
+    frames = np.clip(np.arange(F)[:, None] + np.asarray(lags)[None, :], 0, F - 1)  # (F, n)
+    points = np.arange(P)
+    rows = 2 * frames[:, None, :, None] + np.arange(2)[None, :, None, None]  # (F, 2, n, 1)
+    gather = (rows * P + points).reshape(2 * F, -1)
+    order = np.arange(gather.size).reshape(2 * F, len(lags), P).transpose(1, 0, 2).ravel()
+    target = gather.ravel()[order]
+    mask = (frames[:, :, None] * P + points).reshape(F, -1)
+    counts = np.bincount(target, minlength=2 * F * P).astype(float)
+    return Copies(lags, gather, mask, order, target, counts)
+
+
+def observed_entries(W):
+    """Split W into zero-filled values and the (F, P) observation mask.
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        Checked by :func:`nrsfm.validation.check_problem`: NaN marks a missing coordinate; a
+        point is observed in a frame when both of its coordinates are.
+
+    Returns
+    -------
+    Wz : (2F, P) ndarray
+        W with every unobserved entry set to 0.
+    observed : (F, P) bool ndarray
+
+    Raises
+    ------
+    ValueError
+        A frame observing fewer than 3 points or a point observed in fewer than 2 frames
+        (named).
+    """
+    F, P = W.shape[0] // 2, W.shape[1]
+    obs = np.isfinite(W).reshape(F, 2, P).all(axis=1)
+    _refuse_sparse(obs.sum(axis=1), 3, "frame", "observes {n} points")
+    _refuse_sparse(obs.sum(axis=0), 2, "point", "is observed in {n} frames")
+    return np.where(np.repeat(obs, 2, axis=0), W, 0.0), obs
+
+
+def observed_mask(W):
+    """The (F, P) observation mask of W, checked as by :func:`observed_entries`."""
+    return observed_entries(W)[1]
+
+
+def _refuse_sparse(counts, minimum, what, observes):
+    """ValueError naming the first frame (or point) with fewer than ``minimum`` observations."""
+    bad = np.flatnonzero(counts < minimum)
+    if bad.size:
+        raise ValueError(
+            f"{what} {int(bad[0])} {observes.format(n=int(counts[bad[0]]))} (at least "
+            f"{minimum} are needed to determine it); {bad.size} {what}(s) too sparse: "
+            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
+        )
 
 
 def mask_groups(obs):
@@ -187,14 +334,14 @@ def complete_low_rank(W, rank, lags=NO_LAGS, tol=1e-6, max_iter=300):
 
     Parameters
     ----------
-    W : (2F, P) or (F, 2, P) array_like
-        NaN marks a missing entry.
+    W : (2F, P) ndarray
+        NaN marks a missing entry (:func:`observed_entries`).
     rank : int
         Rank r of ``W - t 1'`` (3K, Eq. 1); ``1 <= r < min(2F, P)``.
     lags : sequence of int
-        Temporal lags (frames), containing 0: the factorisation is of the lagged matrix
-        (:mod:`~nrsfm.stages.completion.lags`), a missing entry the mean of its copies'
-        fits; ``(0,)`` factorises W itself.
+        Temporal lags (frames), containing 0: the factorisation is of the lagged matrix H(W)
+        (module docstring), a missing entry the mean of its copies' fits; ``(0,)``
+        factorises W itself.
     tol : float
         Stop when the objective's relative decrease in an iteration is below ``tol``.
     max_iter : int
@@ -271,3 +418,80 @@ def _factorise(Wz, obs, groups, r, tol, max_iter):
         core = new
     B = _solve_structure(Wz, groups, M, t, lam)[0]
     return M, B, t, lam, n_iter, converged, gain
+
+
+def complete_measurements(W, lags=NEIGHBOUR_LAGS):
+    """Fill the missing entries of W (NaN) by nuclear-norm completion (soft-impute).
+
+    Parameters
+    ----------
+    W : (2F, P) ndarray
+        NaN marks a missing entry (:func:`observed_entries`).
+    lags : sequence of int
+        Temporal lags (frames), containing 0; ``(0,)``: plain nuclear-norm completion of W
+        (for frames that are not a time sequence).
+
+    Returns
+    -------
+    Completion
+        ``method == "soft_impute"``.
+    """
+    Wz, observed = observed_entries(W)
+    copies = lag_copies(*observed.shape, lags)
+    obs2 = np.repeat(observed, 2, axis=0)  # (2F, P)
+    result = dict(observed=observed, method="soft_impute", lags=copies.lags)
+    if obs2.all():
+        rank = int(np.linalg.matrix_rank(Wz))
+        return Completion(W=Wz, rank=rank, n_iter=0, converged=True, **result)
+    t = Wz.sum(axis=1, keepdims=True) / obs2.sum(axis=1, keepdims=True)
+    Z = np.where(obs2, Wz, t)  # mean fill
+    H = copies.lag(Z)
+    sigma1 = float(np.linalg.svd(H - H.mean(axis=1, keepdims=True), compute_uv=False)[0])
+    if not sigma1 > 0:
+        raise ValueError("the observed entries of W have no spread: nothing to complete")
+    tau = TAU_FRACTION * sigma1
+    taus = np.geomspace(max(sigma1 / 10, tau), tau, N_STAGES)
+    rank, n_iter, converged = _continuation(Z, ~obs2, copies, taus)
+    return Completion(W=Z, rank=rank, n_iter=n_iter, converged=converged, **result)
+
+
+def _continuation(Z, missing, copies, taus):
+    """Soft-impute over the thresholds ``taus``, warm-started, filling ``Z[missing]`` in
+    place; a stage stops when the relative change of the filled entries is below ``TOL``
+    (the last) or ``10 TOL``. Returns ``(rank, n_iter, converged)``.
+
+    Each step starts from an extrapolated point ``Z_k + (k - 1) / (k + 2) (Z_k - Z_k-1)``
+    (FISTA, Beck and Teboulle 2009), restarted at each threshold and whenever the step turns
+    against the momentum (O'Donoghue and Candes 2015): the fixed point of soft-impute."""
+    n_iter, converged, rank = 0, False, 0
+    scale = max(float(np.linalg.norm(Z)), 1e-300)
+    for stage, tau_s in enumerate(taus):
+        tol = TOL if stage == len(taus) - 1 else 10 * TOL
+        converged = False
+        prev, k = Z[missing], 0
+        while n_iter < MAX_ITER:
+            n_iter += 1
+            k += 1
+            cur = Z[missing]
+            y = cur + (k - 1) / (k + 2) * (cur - prev)  # the extrapolated point
+            Y = Z.copy()
+            Y[missing] = y
+            H = copies.lag(Y)
+            t = H.mean(axis=1, keepdims=True)  # free row offsets
+            # the prox, from the Gram matrix of H's short side (the small singular values
+            # it loses are far below every threshold)
+            fit, s = weighted_svt(H - t, np.full(min(H.shape), tau_s))
+            rank = int(np.count_nonzero(s))
+            fit += t
+            if copies.gather is not None:  # the mean of each entry's copies (Copies.mean)
+                fit = np.bincount(copies.target, fit.ravel()[copies.order], Z.size) / copies.counts
+            new = fit.reshape(Z.shape)[missing]
+            change = np.linalg.norm(new - cur) / scale
+            if np.vdot(y - new, new - cur) > 0:  # against the momentum
+                k = 0
+            prev = cur
+            Z[missing] = new
+            if change < tol:
+                converged = True
+                break
+    return rank, n_iter, converged
