@@ -60,12 +60,15 @@ def external_file(name, folder=None):
         No folder given, or the file is missing (the message names the folders searched).
     """
     if name not in EXTERNAL:
-        raise ValueError(f"unknown external sequence {name!r}; expected one of "
-                         f"{sorted(EXTERNAL)}")
+        raise ValueError(f"unknown external sequence {name!r}; expected one of {sorted(EXTERNAL)}")
     file = EXTERNAL[name][0]
-    return find_data_file((f"{name}/{file}", file), "external", folder,
-                          env=("NRSFM_EXTERNAL_DATA", "NRSFM_DATA"),
-                          what=f"{file} for {name!r}")
+    return find_data_file(
+        (f"{name}/{file}", file),
+        "external",
+        folder,
+        env=("NRSFM_EXTERNAL_DATA", "NRSFM_DATA"),
+        what=f"{file} for {name!r}",
+    )
 
 
 def load_external(name, folder=None, K=None):
@@ -100,10 +103,12 @@ def load_external(name, folder=None, K=None):
     _, fmt, K_default = EXTERNAL[name]
     mat = scipy.io.loadmat(str(path), squeeze_me=True, struct_as_record=False)
     try:
-        shapes, tracks = (_read_struct(mat) if fmt == "struct" else _read_tracks3d(mat))
+        shapes, tracks = _read_struct(mat) if fmt == "struct" else _read_tracks3d(mat)
     except (KeyError, AttributeError, IndexError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path} does not hold the {fmt!r} layout expected for {name!r} "
-                         f"({type(exc).__name__}: {exc})") from exc
+        raise ValueError(
+            f"{path} does not hold the {fmt!r} layout expected for {name!r} "
+            f"({type(exc).__name__}: {exc})"
+        ) from exc
     seq = sequence_from_camera_shapes(name, shapes, K=K or K_default)
     seq.extra.update(file=str(path), format=fmt)
     if tracks is not None:
@@ -140,8 +145,7 @@ def _read_struct(mat):
             items = np.atleast_1d(get(key))
         except (KeyError, AttributeError):
             continue
-        arrs = [np.asarray(getattr(it, key) if hasattr(it, key) else it, float)[:2]
-                for it in items]
+        arrs = [np.asarray(getattr(it, key) if hasattr(it, key) else it, float)[:2] for it in items]
         if len(arrs) == len(shapes) and all(a.shape == (2, shapes.shape[2]) for a in arrs):
             tracks = np.stack(arrs)[:, :, keep]
             break

@@ -9,8 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["IMAGE_SUFFIXES", "TEXTURE_THRESHOLD", "load_frames", "read_frames",
-           "texture_mask"]
+__all__ = ["IMAGE_SUFFIXES", "TEXTURE_THRESHOLD", "load_frames", "read_frames", "texture_mask"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp")
 
@@ -18,6 +17,7 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pg
 #: levels 0-255) above which a pixel counts as textured. Pixel noise of 2 grey levels on a
 #: flat image stays below 1.1e-4; the synthetic textures have a median of 7e-4.
 TEXTURE_THRESHOLD = 2e-4
+
 
 def _gray(frame):
     import cv2
@@ -71,8 +71,10 @@ def read_frames(path, max_frames=None):
             if img is None:
                 raise ValueError(f"cannot decode image {p}")
             if shape is not None and img.shape != shape:
-                raise ValueError(f"image {p} is {img.shape[1]}x{img.shape[0]} but the first "
-                                 f"image is {shape[1]}x{shape[0]}")
+                raise ValueError(
+                    f"image {p} is {img.shape[1]}x{img.shape[0]} but the first "
+                    f"image is {shape[1]}x{shape[0]}"
+                )
             shape = img.shape
             count += 1
             yield img
@@ -123,4 +125,3 @@ def texture_mask(gray, block=7, threshold=TEXTURE_THRESHOLD):
     import cv2
 
     return cv2.cornerMinEigenVal(_gray(gray), block) > threshold
-

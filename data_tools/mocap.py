@@ -101,19 +101,21 @@ def load_mocap(name: str, data_dir=None) -> Sequence:
     """
     if name not in MOCAP_K:
         raise ValueError(f"unknown MoCap sequence {name!r}; expected one of {MOCAP_NAMES}")
-    path = paths.find_data_file(f"{name}.mat", "mocap", data_dir,
-                                what=f"MoCap file {name}.mat")
+    path = paths.find_data_file(f"{name}.mat", "mocap", data_dir, what=f"MoCap file {name}.mat")
     try:
         mat = scipy.io.loadmat(str(path))
     except Exception as exc:  # MatReadError, ValueError, OSError, zlib errors, ...
-        raise ValueError(f"cannot read {path}: not a valid .mat file "
-                         f"({type(exc).__name__}: {_one_line(exc)})") from exc
+        raise ValueError(
+            f"cannot read {path}: not a valid .mat file ({type(exc).__name__}: {_one_line(exc)})"
+        ) from exc
     try:
         seq = _load_akhter(name, mat) if name in AKHTER else _load_torresani(name, mat)
     except (KeyError, IndexError, ValueError, TypeError) as exc:
         layout = "Akhter et al. (W, S, Rs)" if name in AKHTER else "Torresani et al. (P3_gt)"
-        raise ValueError(f"{path} does not hold the {layout} layout expected for {name} "
-                         f"({type(exc).__name__}: {_one_line(exc)})") from exc
+        raise ValueError(
+            f"{path} does not hold the {layout} layout expected for {name} "
+            f"({type(exc).__name__}: {_one_line(exc)})"
+        ) from exc
     if not (np.all(np.isfinite(seq.W)) and np.all(np.isfinite(seq.shapes))):
         raise ValueError(f"{path} holds non-finite values")
     return seq
@@ -145,8 +147,15 @@ def _load_akhter(name, mat):
     edges = None
     if "list" in mat:
         edges = np.asarray(mat["list"], dtype=int) - 1
-    return Sequence(name=name, W=W, shapes=shapes, rotations=rotations, K=MOCAP_K[name],
-                    edges=edges, world_shapes=S)
+    return Sequence(
+        name=name,
+        W=W,
+        shapes=shapes,
+        rotations=rotations,
+        K=MOCAP_K[name],
+        edges=edges,
+        world_shapes=S,
+    )
 
 
 def _load_torresani(name, mat):
@@ -154,11 +163,12 @@ def _load_torresani(name, mat):
     if P3.ndim != 2 or P3.shape[0] % 3 or P3.shape[0] == 0:
         raise ValueError(f"P3_gt has shape {P3.shape}, expected (3F, P)")
     F = P3.shape[0] // 3
-    shapes = np.stack([P3[:F], P3[F:2 * F], P3[2 * F:]], axis=1)  # (F, 3, P)
+    shapes = np.stack([P3[:F], P3[F : 2 * F], P3[2 * F :]], axis=1)  # (F, 3, P)
     shapes = shapes - shapes.mean(axis=2, keepdims=True)
     W = shapes[:, :2, :].reshape(2 * F, -1).copy()
-    return Sequence(name=name, W=W, shapes=shapes, rotations=None, K=MOCAP_K[name],
-                    world_shapes=None)
+    return Sequence(
+        name=name, W=W, shapes=shapes, rotations=None, K=MOCAP_K[name], world_shapes=None
+    )
 
 
 def load_all(data_dir=None):

@@ -70,7 +70,7 @@ def _block(rng, F, P, fraction):
     frames, seen before and after it."""
     tracks = _chosen(rng, P, fraction)
     length = rng.integers(-(-F // 10), F // 2 + 1, size=tracks.size)
-    start = rng.integers(1, F - length)             # frame 0 and F - 1 stay observed
+    start = rng.integers(1, F - length)  # frame 0 and F - 1 stay observed
     frames = np.arange(F)[:, None]
     mask = np.ones((F, P), bool)
     mask[:, tracks] = (frames < start[None, :]) | (frames >= (start + length)[None, :])

@@ -35,8 +35,9 @@ def _skew(v):
     """(..., 3) vectors -> (..., 3, 3) cross-product matrices."""
     z = np.zeros(v.shape[:-1])
     x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
+    return np.stack(
+        [np.stack([z, -w, y], -1), np.stack([w, z, -x], -1), np.stack([-y, x, z], -1)], -2
+    )
 
 
 def rotvec_to_matrix(v):
@@ -46,16 +47,21 @@ def rotvec_to_matrix(v):
     Kx = _skew(v)
     small = theta < 1e-8
     t = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta ** 2 / 6, np.sin(t) / t)
-    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / t ** 2)
+    a = np.where(small, 1.0 - theta**2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(t)) / t**2)
     return np.eye(3) + a * Kx + b * (Kx @ Kx)
 
 
 def rotation_angle(R):
     """(..., 3, 3) rotations -> (...) angles in degrees (accurate near 0 and 180)."""
     R = np.asarray(R, float)
-    s = 0.5 * np.linalg.norm(np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                                        R[..., 1, 0] - R[..., 0, 1]], -1), axis=-1)
+    s = 0.5 * np.linalg.norm(
+        np.stack(
+            [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+            -1,
+        ),
+        axis=-1,
+    )
     c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
     return np.degrees(np.arctan2(s, c))
 
@@ -133,14 +139,18 @@ def random():
     -------
     path : callable ``(F, seed) -> (F, 3, 3)``.
     """
+
     def path(F, seed=0):
         q = np.random.default_rng(seed).standard_normal((F, 4))
         w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
-        return np.stack([
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ], -2)
+        return np.stack(
+            [
+                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+            ],
+            -2,
+        )
 
     path.__name__ = "random"
     return path
@@ -176,8 +186,9 @@ def project(S, R):
     if S.ndim != 3 or S.shape[1] != 3:
         raise ValueError(f"world shapes must have shape (F, 3, P); got {S.shape}")
     if R.shape != (S.shape[0], 3, 3):
-        raise ValueError(f"rotations must have shape (F, 3, 3) = {(S.shape[0], 3, 3)}; "
-                         f"got {R.shape}")
+        raise ValueError(
+            f"rotations must have shape (F, 3, 3) = {(S.shape[0], 3, 3)}; got {R.shape}"
+        )
     X = R @ (S - S.mean(axis=2, keepdims=True))
     return X[:, :2].reshape(2 * S.shape[0], S.shape[2]).copy(), X
 
@@ -214,11 +225,23 @@ def reproject(seq, path="original", noise=0.0, seed=0, name=None, noise_seed=Non
     W, X = project(S, R)
     if noise:
         W = add_noise(W, noise, seed=seed + 1 if noise_seed is None else noise_seed)
-    return Sequence(name=name or f"{seq.name}/{label}/noise{noise:g}", W=W, shapes=X,
-                    rotations=R, K=seq.K, edges=seq.edges, world_shapes=S,
-                    extra=dict(path=label, turn=path_turn(R), noise=float(noise), seed=seed,
-                               noise_seed=noise_seed,
-                               source=seq.name))
+    return Sequence(
+        name=name or f"{seq.name}/{label}/noise{noise:g}",
+        W=W,
+        shapes=X,
+        rotations=R,
+        K=seq.K,
+        edges=seq.edges,
+        world_shapes=S,
+        extra=dict(
+            path=label,
+            turn=path_turn(R),
+            noise=float(noise),
+            seed=seed,
+            noise_seed=noise_seed,
+            source=seq.name,
+        ),
+    )
 
 
 def _path_rotations(seq, path, F, seed):
@@ -234,8 +257,7 @@ def _path_rotations(seq, path, F, seed):
     else:
         R, label = np.asarray(path, float), "custom"
     if R.shape != (F, 3, 3):
-        raise ValueError(f"camera path must give shape (F, 3, 3) = {(F, 3, 3)}; "
-                         f"got {R.shape}")
+        raise ValueError(f"camera path must give shape (F, 3, 3) = {(F, 3, 3)}; got {R.shape}")
     return R, label
 
 
@@ -251,21 +273,23 @@ def parse_path(text):
         return random()
     for prefix, make, default in (("smooth", smooth, None), ("fast", fast, 40.0)):
         if text.startswith(prefix):
-            arg = text[len(prefix):]
+            arg = text[len(prefix) :]
             if not arg and default is None:
                 raise ValueError(f"path {text!r} needs a turn in degrees, e.g. 'smooth62'")
             try:
                 return make(float(arg) if arg else default)
             except ValueError as exc:
                 raise ValueError(f"bad camera path {text!r}: {exc}") from exc
-    raise ValueError(f"unknown camera path {text!r}; expected 'original', 'smooth<deg>', "
-                     f"'fast[<deg>]' or 'random'")
+    raise ValueError(
+        f"unknown camera path {text!r}; expected 'original', 'smooth<deg>', "
+        f"'fast[<deg>]' or 'random'"
+    )
 
 
 def row_seed(seed, *key):
     """Seed from a base seed and a key (e.g. name, path): not from a place in a list."""
     text = "|".join(f"{k:g}" if isinstance(k, float) else str(k) for k in key)
-    return (int(seed) * 1_000_003 + zlib.crc32(text.encode())) % 2 ** 31
+    return (int(seed) * 1_000_003 + zlib.crc32(text.encode())) % 2**31
 
 
 def validation_set(rows, load, seed=0):
@@ -291,6 +315,13 @@ def validation_set(rows, load, seed=0):
     for name, path, noise in rows:
         if name not in cache:
             cache[name] = load(name)
-        out.append(reproject(cache[name], path, noise, seed=row_seed(seed, name, path),
-                             noise_seed=row_seed(seed, name, path, float(noise))))
+        out.append(
+            reproject(
+                cache[name],
+                path,
+                noise,
+                seed=row_seed(seed, name, path),
+                noise_seed=row_seed(seed, name, path, float(noise)),
+            )
+        )
     return out

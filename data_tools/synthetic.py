@@ -38,9 +38,14 @@ def camera_rotations(F, motion="smooth", rng=None):
     step = {"smooth": 5.0, "fast": 25.0}[motion]
     t = np.arange(F)
     phase = rng.uniform(0, 2 * np.pi, 2)
-    axis = np.stack([0.3 * np.sin(2 * np.pi * t / 97 + phase[0]),
-                     np.ones(F),
-                     0.3 * np.cos(2 * np.pi * t / 61 + phase[1])], axis=1)
+    axis = np.stack(
+        [
+            0.3 * np.sin(2 * np.pi * t / 97 + phase[0]),
+            np.ones(F),
+            0.3 * np.cos(2 * np.pi * t / 61 + phase[1]),
+        ],
+        axis=1,
+    )
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     steps = Rotation.from_rotvec(np.deg2rad(step) * axis)
     out = [start]
@@ -49,8 +54,9 @@ def camera_rotations(F, motion="smooth", rng=None):
     return Rotation.concatenate(out).as_matrix()
 
 
-def make_synthetic(F=120, P=40, K=3, motion="smooth", noise=0.0, deformation=0.4, seed=0,
-                   name=None):
+def make_synthetic(
+    F=120, P=40, K=3, motion="smooth", noise=0.0, deformation=0.4, seed=0, name=None
+):
     """A seeded synthetic NRSfM sequence with ground truth.
 
     Shapes are ``X_f = sum_k c_fk B_k`` (Eq. 1): a rigid mean shape ``B_1`` (coefficient
@@ -95,10 +101,17 @@ def make_synthetic(F=120, P=40, K=3, motion="smooth", noise=0.0, deformation=0.4
     if noise:
         W = W + noise * np.mean(np.std(W_clean, axis=1)) * rng.standard_normal(W.shape)
         W -= W.mean(axis=1, keepdims=True)
-    return Sequence(name=name or f"synthetic-{motion}", W=W, shapes=cam, rotations=R, K=K,
-                    world_shapes=world,
-                    extra=dict(basis=basis, coefficients=coeff, W_clean=W_clean,
-                               motion=motion, noise=noise, seed=seed))
+    return Sequence(
+        name=name or f"synthetic-{motion}",
+        W=W,
+        shapes=cam,
+        rotations=R,
+        K=K,
+        world_shapes=world,
+        extra=dict(
+            basis=basis, coefficients=coeff, W_clean=W_clean, motion=motion, noise=noise, seed=seed
+        ),
+    )
 
 
 def make_rank_deficient(F=80, P=30, motion="smooth", seed=0, name=None):
@@ -129,12 +142,19 @@ def make_rank_deficient(F=80, P=30, motion="smooth", seed=0, name=None):
     world = S0[None] + b[:, None, None] * S1[None]
     R = camera_rotations(F, motion, rng)
     cam = R @ world
-    return Sequence(name=name or f"rigid-planar-{motion}", W=cam[:, :2].reshape(2 * F, P),
-                    shapes=cam, rotations=R, K=2, world_shapes=world,
-                    extra=dict(motion=motion, seed=seed))
+    return Sequence(
+        name=name or f"rigid-planar-{motion}",
+        W=cam[:, :2].reshape(2 * F, P),
+        shapes=cam,
+        rotations=R,
+        K=2,
+        world_shapes=world,
+        extra=dict(motion=motion, seed=seed),
+    )
 
 
 def default_sequence():
     """The built-in input of ``nrsfm demo``: 150 frames, 45 points, K = 3, smooth camera."""
-    return make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.0, seed=7,
-                          name="synthetic-demo")
+    return make_synthetic(
+        F=150, P=45, K=3, motion="smooth", noise=0.0, seed=7, name="synthetic-demo"
+    )

@@ -62,11 +62,12 @@ def make_texture(size=1024, seed=0):
 
 def _grid(n):
     u, v = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
-    uv = np.stack([u.ravel(), v.ravel()], axis=1)             # (V, 2), index i = row*n+col
+    uv = np.stack([u.ravel(), v.ravel()], axis=1)  # (V, 2), index i = row*n+col
     idx = np.arange(n * n).reshape(n, n)
     a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
-    tris = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3),
-                           np.stack([a, d, c], -1).reshape(-1, 3)])
+    tris = np.concatenate(
+        [np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]
+    )
     return uv, tris
 
 
@@ -83,14 +84,25 @@ def _surface(kind, uv, F, rng):
         # The rest shape is bent (a flat sheet would make the rigid factorisation
         # degenerate: its mean shape has rank 2).
         k, amp = 1.6 * np.pi, 0.15 * (0.3 + 0.7 * u)
-        bend = 0.35 * (1 - x ** 2) + 0.15 * (y / 0.75) ** 2
-        B = np.stack([np.stack([x, y, bend]),
-                      np.stack([zero, zero, amp * np.sin(k * x)]),
-                      np.stack([zero, zero, amp * np.cos(k * x)]),
-                      np.stack([zero, zero, 0.12 * np.sin(np.pi * v) * x])])
+        bend = 0.35 * (1 - x**2) + 0.15 * (y / 0.75) ** 2
+        B = np.stack(
+            [
+                np.stack([x, y, bend]),
+                np.stack([zero, zero, amp * np.sin(k * x)]),
+                np.stack([zero, zero, amp * np.cos(k * x)]),
+                np.stack([zero, zero, 0.12 * np.sin(np.pi * v) * x]),
+            ]
+        )
         w = 2 * np.pi * 1.5
-        coeff = np.stack([np.ones(F), np.cos(w * t + phase), -np.sin(w * t + phase),
-                          np.sin(2 * np.pi * t + 0.5 * phase)], axis=1)
+        coeff = np.stack(
+            [
+                np.ones(F),
+                np.cos(w * t + phase),
+                -np.sin(w * t + phase),
+                np.sin(2 * np.pi * t + 0.5 * phase),
+            ],
+            axis=1,
+        )
     elif kind == "face":
         r2 = (x / 0.95) ** 2 + (y / 0.8) ** 2
         dome = 0.45 * np.sqrt(np.clip(1 - r2, 0, None))
@@ -99,12 +111,22 @@ def _surface(kind, uv, F, rng):
         eyes = -0.08 * np.exp(-(((np.abs(x) - 0.32) / 0.14) ** 2 + ((y + 0.12) / 0.08) ** 2))
         chin = 0.08 * np.exp(-((x / 0.3) ** 2 + ((y - 0.6) / 0.12) ** 2))
         mean_z = dome + nose + brows + eyes + chin
-        jaw = np.clip((y - 0.25) / 0.5, 0, 1) ** 1.5 * np.exp(-(x / 0.6) ** 2)
-        B = np.stack([np.stack([x, y, mean_z]),
-                      np.stack([0.05 * x, 0.05 * y, mean_z]),             # breathing
-                      np.stack([zero, 0.25 * jaw, -0.1 * jaw])])           # mouth opening
-        coeff = np.stack([np.ones(F), 0.6 * np.sin(2 * np.pi * 2 * t + phase),
-                          0.5 + 0.5 * np.sin(2 * np.pi * 1.3 * t + 0.7 * phase)], axis=1)
+        jaw = np.clip((y - 0.25) / 0.5, 0, 1) ** 1.5 * np.exp(-((x / 0.6) ** 2))
+        B = np.stack(
+            [
+                np.stack([x, y, mean_z]),
+                np.stack([0.05 * x, 0.05 * y, mean_z]),  # breathing
+                np.stack([zero, 0.25 * jaw, -0.1 * jaw]),
+            ]
+        )  # mouth opening
+        coeff = np.stack(
+            [
+                np.ones(F),
+                0.6 * np.sin(2 * np.pi * 2 * t + phase),
+                0.5 + 0.5 * np.sin(2 * np.pi * 1.3 * t + 0.7 * phase),
+            ],
+            axis=1,
+        )
     else:
         raise ValueError(f"unknown surface {kind!r}; expected one of {SURFACES}")
     return np.einsum("fk,kiv->fiv", coeff, B), B, coeff
@@ -113,9 +135,14 @@ def _surface(kind, uv, F, rng):
 def _cameras(F, rng, yaw=28.0, pitch=14.0, roll=5.0):
     t = np.arange(F) / max(F - 1, 1)
     ph = rng.uniform(0, 2 * np.pi, 3)
-    angles = np.stack([pitch * np.sin(2 * np.pi * 0.8 * t + ph[0]),
-                       yaw * np.sin(2 * np.pi * 1.0 * t + ph[1]),
-                       roll * np.sin(2 * np.pi * 0.6 * t + ph[2])], axis=1)
+    angles = np.stack(
+        [
+            pitch * np.sin(2 * np.pi * 0.8 * t + ph[0]),
+            yaw * np.sin(2 * np.pi * 1.0 * t + ph[1]),
+            roll * np.sin(2 * np.pi * 0.6 * t + ph[2]),
+        ],
+        axis=1,
+    )
     return Rotation.from_euler("xyz", angles, degrees=True).as_matrix()
 
 
@@ -199,8 +226,13 @@ class SyntheticVideo:
         H, W = ids.shape
         xi = np.clip(np.rint(np.nan_to_num(p[:, 0])).astype(int), 0, W - 1)
         yi = np.clip(np.rint(np.nan_to_num(p[:, 1])).astype(int), 0, H - 1)
-        inside = np.isfinite(p).all(1) & (p[:, 0] > -0.5) & (p[:, 0] < W - 0.5) \
-            & (p[:, 1] > -0.5) & (p[:, 1] < H - 0.5)
+        inside = (
+            np.isfinite(p).all(1)
+            & (p[:, 0] > -0.5)
+            & (p[:, 0] < W - 0.5)
+            & (p[:, 1] > -0.5)
+            & (p[:, 1] < H - 0.5)
+        )
         tri = np.where(inside, ids[yi, xi] - 1, -1)
         hom = np.concatenate([p, np.ones((len(p), 1))], axis=1)
         bary = np.full((len(p), 3), np.nan)
@@ -213,7 +245,7 @@ class SyntheticVideo:
         triangle = np.asarray(triangle)
         ok = triangle >= 0
         X = np.full((self.n_frames, 3, len(triangle)), np.nan)
-        verts = self.vertices[:, :, self.triangles[triangle[ok]]]      # (F, 3, P', 3)
+        verts = self.vertices[:, :, self.triangles[triangle[ok]]]  # (F, 3, P', 3)
         X[:, :, ok] = np.einsum("fipj,pj->fip", verts, bary[ok])
         return X
 
@@ -234,7 +266,7 @@ class SyntheticVideo:
             (P,) bool: the track started on the surface (not the background).
         """
         tracks = np.asarray(getattr(tracks, "tracks", tracks), float)
-        seen = np.isfinite(tracks).all(axis=1)                      # (F, P)
+        seen = np.isfinite(tracks).all(axis=1)  # (F, P)
         first = np.where(seen.any(axis=0), seen.argmax(axis=0), 0)
         tri = np.full(tracks.shape[2], -1)
         bary = np.full((tracks.shape[2], 3), np.nan)
@@ -242,8 +274,9 @@ class SyntheticVideo:
             cols = np.flatnonzero(first == f)
             tri[cols], bary[cols] = self.locate(tracks[f][:, cols].T, frame=int(f))
         world = self.world_points(tri, bary)
-        return dict(world=world, camera=self.rotations @ world, pixels=self.project(world),
-                    valid=tri >= 0)
+        return dict(
+            world=world, camera=self.rotations @ world, pixels=self.project(world), valid=tri >= 0
+        )
 
     def sequence(self, tracks, name=None):
         """A :class:`Sequence` of the valid tracks' pixel coordinates with 3D ground truth.
@@ -261,10 +294,15 @@ class SyntheticVideo:
         W = W - np.nanmean(W, axis=1, keepdims=True)
         cam = self.pixel_scale * gt["camera"][:, :, ok]
         cam = cam - cam.mean(axis=2, keepdims=True)
-        return Sequence(name=name or f"video-{self.surface}", W=W, shapes=cam,
-                        rotations=self.rotations, K=None,
-                        world_shapes=self.pixel_scale * gt["world"][:, :, ok],
-                        extra=dict(valid=ok))
+        return Sequence(
+            name=name or f"video-{self.surface}",
+            W=W,
+            shapes=cam,
+            rotations=self.rotations,
+            K=None,
+            world_shapes=self.pixel_scale * gt["world"][:, :, ok],
+            extra=dict(valid=ok),
+        )
 
 
 def _id_buffer(tris, pix, depth, size):
@@ -274,7 +312,7 @@ def _id_buffer(tris, pix, depth, size):
 
     H, W = size
     ids = np.zeros((H, W), np.int32)
-    corners = pix[tris]                                          # (T, 3, 2)
+    corners = pix[tris]  # (T, 3, 2)
     order = np.argsort(-depth[tris].mean(axis=1), kind="stable")  # far (large z) first
     fixed = np.rint(corners * 16).astype(np.int32)
     for t in order:
@@ -302,14 +340,28 @@ def _render(texture, uv_pix, tris, pix, depth, size, background):
     map_x = np.full((H, W), -1.0, np.float32)
     map_y = np.full((H, W), -1.0, np.float32)
     map_x[yy, xx], map_y[yy, xx] = tex_xy[:, 0], tex_xy[:, 1]
-    img = cv2.remap(texture, map_x, map_y, cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_CONSTANT, borderValue=background)
+    img = cv2.remap(
+        texture,
+        map_x,
+        map_y,
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=background,
+    )
     img[ids == 0] = background
     return img, ids, affine
 
 
-def make_video(surface="sheet", n_frames=100, size=(480, 640), grid=61, seed=0,
-               noise=0.0, texture_size=None, fill=0.7):
+def make_video(
+    surface="sheet",
+    n_frames=100,
+    size=(480, 640),
+    grid=61,
+    seed=0,
+    noise=0.0,
+    texture_size=None,
+    fill=0.7,
+):
     """Render a synthetic video of a deforming textured surface with ground truth.
 
     Parameters
@@ -354,14 +406,19 @@ def make_video(surface="sheet", n_frames=100, size=(480, 640), grid=61, seed=0,
     texture = make_texture(texture_size, seed)
     uv, tris = _grid(int(grid))
     vertices, basis, coeff = _surface(surface, uv, F, rng)
-    if surface == "face":                       # an oval outline: keep the inner triangles
+    if surface == "face":  # an oval outline: keep the inner triangles
         x, y = 2 * uv[:, 0] - 1, 1.5 * uv[:, 1] - 0.75
         inner = (x / 0.95) ** 2 + (y / 0.8) ** 2 <= 1.0
         tris = tris[inner[tris].all(axis=1)]
     R = _cameras(F, rng)
     t = np.arange(F) / max(F - 1, 1)
-    drift = np.stack([0.04 * W * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6)),
-                      0.03 * H * np.sin(2 * np.pi * 0.9 * t + rng.uniform(0, 6))], axis=1)
+    drift = np.stack(
+        [
+            0.04 * W * np.sin(2 * np.pi * 0.7 * t + rng.uniform(0, 6)),
+            0.03 * H * np.sin(2 * np.pi * 0.9 * t + rng.uniform(0, 6)),
+        ],
+        axis=1,
+    )
     offsets = np.array([W / 2, H / 2]) + drift
     uv_pix = uv * (texture_size - 1)
     background = (60, 60, 60)
@@ -376,10 +433,19 @@ def make_video(surface="sheet", n_frames=100, size=(480, 640), grid=61, seed=0,
         frames[f] = img
         if f == 0:
             id0, affine0 = ids, affine
-    return SyntheticVideo(frames=frames, surface=surface, uv=uv, triangles=tris,
-                          vertices=vertices, rotations=R, pixel_scale=float(s),
-                          offsets=offsets, id0=id0, affine0=affine0,
-                          extra=dict(basis=basis, coefficients=coeff, seed=seed, noise=noise))
+    return SyntheticVideo(
+        frames=frames,
+        surface=surface,
+        uv=uv,
+        triangles=tris,
+        vertices=vertices,
+        rotations=R,
+        pixel_scale=float(s),
+        offsets=offsets,
+        id0=id0,
+        affine0=affine0,
+        extra=dict(basis=basis, coefficients=coeff, seed=seed, noise=noise),
+    )
 
 
 def tracking_errors(video, tracks, swap_px=3.0):
@@ -407,14 +473,21 @@ def tracking_errors(video, tracks, swap_px=3.0):
     """
     gt = video.ground_truth(tracks.tracks)
     ok = gt["valid"]
-    err = np.linalg.norm(tracks.tracks - gt["pixels"], axis=1)[:, ok]     # (F, P')
+    err = np.linalg.norm(tracks.tracks - gt["pixels"], axis=1)[:, ok]  # (F, P')
     kept = err[np.isfinite(err)]
-    out = dict(n_tracks=int(tracks.n_points), n_on_surface=int(ok.sum()),
-               n_complete=int(tracks.complete.sum()),
-               n_complete_on_surface=int((tracks.complete & ok).sum()))
+    out = dict(
+        n_tracks=int(tracks.n_points),
+        n_on_surface=int(ok.sum()),
+        n_complete=int(tracks.complete.sum()),
+        n_complete_on_surface=int((tracks.complete & ok).sum()),
+    )
     if kept.size:
-        out.update(error_median=float(np.median(kept)), error_mean=float(kept.mean()),
-                   error_p95=float(np.percentile(kept, 95)), error_max=float(kept.max()))
+        out.update(
+            error_median=float(np.median(kept)),
+            error_mean=float(kept.mean()),
+            error_p95=float(np.percentile(kept, 95)),
+            error_max=float(kept.max()),
+        )
     out["n_swapped_kept"] = int(np.any(np.nan_to_num(err, nan=0.0) > swap_px, axis=0).sum())
     if tracks.raw is not None:
         raw_err = np.linalg.norm(tracks.raw.astype(float) - gt["pixels"], axis=1)[:, ok]
@@ -423,7 +496,10 @@ def tracking_errors(video, tracks, swap_px=3.0):
         first = np.where(has, drifted.argmax(axis=0), video.n_frames)
         lost = tracks.lost_at[ok]
         caught = has & (lost <= first)
-        out.update(n_drift=int(has.sum()), n_caught=int(caught.sum()),
-                   caught_fraction=float(caught.sum() / has.sum()) if has.any() else 1.0,
-                   n_stopped_clean=int((~has & (lost < video.n_frames)).sum()))
+        out.update(
+            n_drift=int(has.sum()),
+            n_caught=int(caught.sum()),
+            caught_fraction=float(caught.sum() / has.sum()) if has.any() else 1.0,
+            n_stopped_clean=int((~has & (lost < video.n_frames)).sum()),
+        )
     return out

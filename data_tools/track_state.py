@@ -14,6 +14,7 @@ from .frames import _bgr
 
 __all__ = ["Tracks"]
 
+
 @dataclass
 class Tracks:
     """Tracks from a video.
@@ -82,19 +83,27 @@ class Tracks:
         n = int(self.complete.sum())
         late = int((self.start > 0).sum())
         lost = int((self.lost_at < F).sum())
-        return (f"{self.method} tracks: {P} points over {F} frames, {n} complete, "
-                f"{lost} lost before the last frame, {late} starting after frame 0")
+        return (
+            f"{self.method} tracks: {P} points over {F} frames, {n} complete, "
+            f"{lost} lost before the last frame, {late} starting after frame 0"
+        )
 
     def save(self, path):
         """Write an .npz with ``W`` (2F, P, NaN where lost), ``tracks``, ``lost_at``,
         ``fb_error``, ``colors``, ``image_size`` and ``method``."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, W=self.W, tracks=self.tracks, lost_at=self.lost_at,
-                            started_at=self.start,
-                            fb_error=self.fb_error.astype(np.float32), colors=self.colors,
-                            image_size=np.asarray(self.image_size),
-                            method=np.array(self.method))
+        np.savez_compressed(
+            path,
+            W=self.W,
+            tracks=self.tracks,
+            lost_at=self.lost_at,
+            started_at=self.start,
+            fb_error=self.fb_error.astype(np.float32),
+            colors=self.colors,
+            image_size=np.asarray(self.image_size),
+            method=np.array(self.method),
+        )
         return path
 
 
@@ -147,7 +156,7 @@ class _TrackSet:
         nb = _neighbours(new, self.k) if self.check else None
         if nb is None or nb.shape[1] < self.nbrs.shape[1]:
             nb = np.repeat(np.arange(n)[:, None], self.nbrs.shape[1], axis=1)  # no check
-        self.nbrs = np.concatenate([self.nbrs, nb[:, :self.nbrs.shape[1]] + P])
+        self.nbrs = np.concatenate([self.nbrs, nb[:, : self.nbrs.shape[1]] + P])
         self.pts = np.concatenate([self.pts, new])
         self.pts0 = np.concatenate([self.pts0, new])
         self.born = np.concatenate([self.born, np.full(n, f)])
@@ -168,8 +177,15 @@ class _TrackSet:
 
     def step(self, f, nxt, err, neighbour_px):
         """Close frame ``f``: the neighbour check on ``nxt`` (P, 2), then record it."""
-        _check_neighbours(f, self.pts0, nxt, self.active, self.lost_at,
-                          self.nbrs if self.check else None, neighbour_px)
+        _check_neighbours(
+            f,
+            self.pts0,
+            nxt,
+            self.active,
+            self.lost_at,
+            self.nbrs if self.check else None,
+            neighbour_px,
+        )
         self.history.append(nxt.copy())
         self.fb.append(err)
         self.pts = nxt
@@ -189,8 +205,8 @@ class _TrackSet:
         raw = np.full((F, P, 2), np.nan, np.float32)
         fb = np.full((F, P), np.nan)
         for f, (h, e) in enumerate(zip(self.history, self.fb)):
-            raw[f, :len(h)], fb[f, :len(e)] = h, e
-        raw = raw.transpose(0, 2, 1)                          # (F, 2, P)
+            raw[f, : len(h)], fb[f, : len(e)] = h, e
+        raw = raw.transpose(0, 2, 1)  # (F, 2, P)
         tracks = raw.astype(float)
         frame_idx = np.arange(F)[:, None]
         gone = (frame_idx >= self.lost_at[None, :]) | (frame_idx < self.born[None, :])
@@ -198,10 +214,17 @@ class _TrackSet:
         if not keep_raw:
             fb[gone] = np.nan
         late = self.born.any()
-        return Tracks(tracks=tracks, lost_at=self.lost_at, fb_error=fb, colors=self.colors,
-                      method=method, image_size=size, params=params,
-                      raw=raw if keep_raw else None,
-                      started_at=self.born.copy() if late else None)
+        return Tracks(
+            tracks=tracks,
+            lost_at=self.lost_at,
+            fb_error=fb,
+            colors=self.colors,
+            method=method,
+            image_size=size,
+            params=params,
+            raw=raw if keep_raw else None,
+            started_at=self.born.copy() if late else None,
+        )
 
 
 def _detect_due(f, n_frames, detect_every):
@@ -210,6 +233,7 @@ def _detect_due(f, n_frames, detect_every):
 
 
 # --------------------------------------------------------------------------- neighbours
+
 
 def _neighbours(pts0, k):
     """(P, k) indices of each point's k nearest other points in the first frame."""
@@ -251,16 +275,15 @@ def _neighbour_residual(pts0, cur, alive, nbrs):
     """Distance of each point in ``cur`` from the position predicted by the affine map
     (first frame -> now) fitted to its live neighbours; NaN with fewer than 3 of them."""
     P, k = nbrs.shape
-    a = alive[nbrs]                                              # (P, k)
+    a = alive[nbrs]  # (P, k)
     X = np.concatenate([pts0[nbrs] - pts0[:, None], np.ones((P, k, 1))], axis=2)  # (P,k,3)
     X = X * a[..., None]
-    Y = cur[nbrs] * a[..., None]                                 # (P, k, 2)
+    Y = cur[nbrs] * a[..., None]  # (P, k, 2)
     A = X.transpose(0, 2, 1) @ X + 1e-6 * np.eye(3)
     B = X.transpose(0, 2, 1) @ Y
-    coef = np.linalg.solve(A, B)                                 # (P, 3, 2)
-    pred = coef[:, 2, :]                                         # affine map at offset 0
+    coef = np.linalg.solve(A, B)  # (P, 3, 2)
+    pred = coef[:, 2, :]  # affine map at offset 0
     with np.errstate(invalid="ignore"):
         r = np.linalg.norm(cur - pred, axis=1)
     r[a.sum(axis=1) < 3] = np.nan
     return r
-

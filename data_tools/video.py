@@ -17,15 +17,38 @@ import numpy as np
 from .frames import IMAGE_SUFFIXES, _gray, load_frames, read_frames, texture_mask
 from .track_state import Tracks, _advance, _as_frames, _detect_due, _inside, _TrackSet
 
-__all__ = ["IMAGE_SUFFIXES", "Tracks", "load_frames", "read_frames", "texture_mask",
-           "track_dense", "track_sparse", "tracks_from_frames", "tracks_from_video"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "Tracks",
+    "load_frames",
+    "read_frames",
+    "texture_mask",
+    "track_dense",
+    "track_sparse",
+    "tracks_from_frames",
+    "tracks_from_video",
+]
 
 
 # --------------------------------------------------------------------------- sparse
 
-def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=15,
-                 levels=3, fb_threshold=1.0, max_residual=25.0, neighbour_px=2.0,
-                 n_neighbours=8, mask=None, min_points=8, keep_raw=False, detect_every=0):
+
+def track_sparse(
+    frames,
+    max_points=2000,
+    quality=0.01,
+    min_distance=5,
+    window=15,
+    levels=3,
+    fb_threshold=1.0,
+    max_residual=25.0,
+    neighbour_px=2.0,
+    n_neighbours=8,
+    mask=None,
+    min_points=8,
+    keep_raw=False,
+    detect_every=0,
+):
     """Corners of the first frame (and, with ``detect_every``, of later frames) tracked by
     pyramidal Lucas-Kanade with a forward-backward check.
 
@@ -85,32 +108,60 @@ def track_sparse(frames, max_points=2000, quality=0.01, min_distance=5, window=1
         if mask.shape != (H, W):
             raise ValueError(f"mask has shape {mask.shape} but the frames are {(H, W)}")
         m &= mask
-    pts = cv2.goodFeaturesToTrack(prev, maxCorners=int(max_points), qualityLevel=quality,
-                                  minDistance=min_distance, mask=m.astype(np.uint8))
+    pts = cv2.goodFeaturesToTrack(
+        prev,
+        maxCorners=int(max_points),
+        qualityLevel=quality,
+        minDistance=min_distance,
+        mask=m.astype(np.uint8),
+    )
     n = 0 if pts is None else len(pts)
     if n < min_points:
-        raise ValueError(f"textureless video: the first frame has {n} trackable corners "
-                         f"(need at least {min_points})")
+        raise ValueError(
+            f"textureless video: the first frame has {n} trackable corners "
+            f"(need at least {min_points})"
+        )
     ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
-    lk = dict(winSize=(window, window), maxLevel=levels,
-              criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+    lk = dict(
+        winSize=(window, window),
+        maxLevel=levels,
+        criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01),
+    )
 
-    def move(prev, cur, p):                     # pyramidal Lucas-Kanade, both ways
+    def move(prev, cur, p):  # pyramidal Lucas-Kanade, both ways
         p = p.reshape(-1, 1, 2)
         q, st, res = cv2.calcOpticalFlowPyrLK(prev, cur, p, None, **lk)
         b, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, q, None, **lk)
         e = np.linalg.norm((b - p).reshape(-1, 2), axis=1)
-        bad = ((st.ravel() == 0) | (st2.ravel() == 0) | ~(e <= fb_threshold)
-               | ~(res.ravel() <= max_residual))
+        bad = (
+            (st.ravel() == 0)
+            | (st2.ravel() == 0)
+            | ~(e <= fb_threshold)
+            | ~(res.ravel() <= max_residual)
+        )
         return q.reshape(-1, 2), e, bad
 
-    _follow(frames, ts, move, lambda f, cur: _detect_corners(
-        ts, f, cur, frames[f], max_points, quality, min_distance),
-        keep_raw, neighbour_px, detect_every)
-    params = dict(max_points=max_points, quality=quality, min_distance=min_distance,
-                  window=window, levels=levels, fb_threshold=fb_threshold,
-                  max_residual=max_residual, neighbour_px=neighbour_px,
-                  n_neighbours=n_neighbours, detect_every=detect_every)
+    _follow(
+        frames,
+        ts,
+        move,
+        lambda f, cur: _detect_corners(ts, f, cur, frames[f], max_points, quality, min_distance),
+        keep_raw,
+        neighbour_px,
+        detect_every,
+    )
+    params = dict(
+        max_points=max_points,
+        quality=quality,
+        min_distance=min_distance,
+        window=window,
+        levels=levels,
+        fb_threshold=fb_threshold,
+        max_residual=max_residual,
+        neighbour_px=neighbour_px,
+        n_neighbours=n_neighbours,
+        detect_every=detect_every,
+    )
     return ts.finish("sparse", (H, W), params, keep_raw)
 
 
@@ -140,7 +191,7 @@ def _detect_corners(ts, f, gray, frame, max_points, quality, min_distance):
     import cv2
 
     room = int(max_points) - int(ts.active.sum())
-    if room <= 0:                     # (maxCorners = 0 would mean "no limit" to OpenCV)
+    if room <= 0:  # (maxCorners = 0 would mean "no limit" to OpenCV)
         return
     free = texture_mask(gray).astype(np.uint8)
     live = np.rint(ts.pts[ts.active]).astype(int)
@@ -150,13 +201,19 @@ def _detect_corners(ts, f, gray, frame, max_points, quality, min_distance):
     taken[live[:, 1], live[:, 0]] = 1
     d = 2 * int(min_distance) + 1
     taken = cv2.dilate(taken, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (d, d)))
-    pts = cv2.goodFeaturesToTrack(gray, maxCorners=room, qualityLevel=quality,
-                                  minDistance=min_distance, mask=free & (1 - taken))
+    pts = cv2.goodFeaturesToTrack(
+        gray,
+        maxCorners=room,
+        qualityLevel=quality,
+        minDistance=min_distance,
+        mask=free & (1 - taken),
+    )
     if pts is not None and len(pts):
         ts.add(pts.reshape(-1, 2), f, frame)
 
 
 # --------------------------------------------------------------------------- dense
+
 
 def _sample(field_, pts):
     """Bilinear sample of an (H, W, C) or (H, W) field at (P, 2) points -> (P, C) or (P,)."""
@@ -180,7 +237,7 @@ def _flow_engine(name):
 
     if name in ("dis", "dis-fast"):
         dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-        if name == "dis":            # refine down to full resolution, denser patches
+        if name == "dis":  # refine down to full resolution, denser patches
             dis.setFinestScale(0)
             dis.setPatchStride(2)
         return lambda a, b: dis.calc(a, b, None)
@@ -202,19 +259,32 @@ def _dense_mask(gray, erode):
 def _detect_grid(ts, f, gray, frame, step, erode, max_points):
     """Start tracks at the textured grid points of frame f that no live track covers."""
     m = _dense_mask(gray, erode)
-    ys, xs = np.mgrid[0:m.shape[0]:int(step), 0:m.shape[1]:int(step)]
+    ys, xs = np.mgrid[0 : m.shape[0] : int(step), 0 : m.shape[1] : int(step)]
     keep = m[ys, xs]
     cand = np.stack([xs[keep], ys[keep]], axis=1).astype(np.float32)
     cand = cand[ts.free_space(cand, float(step))]
     if max_points is not None:
-        cand = cand[:max(int(max_points) - int(ts.active.sum()), 0)]
+        cand = cand[: max(int(max_points) - int(ts.active.sum()), 0)]
     if len(cand):
         ts.add(cand, f, frame)
 
 
-def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
-                neighbour_px=2.0, n_neighbours=8, flow="dis", erode=7, window=15,
-                min_points=8, max_points=None, keep_raw=False, detect_every=0):
+def track_dense(
+    frames,
+    step=4,
+    mask=None,
+    fb_threshold=1.0,
+    max_residual=25.0,
+    neighbour_px=2.0,
+    n_neighbours=8,
+    flow="dis",
+    erode=7,
+    window=15,
+    min_points=8,
+    max_points=None,
+    keep_raw=False,
+    detect_every=0,
+):
     """Grid points of the first frame (and, with ``detect_every``, of later frames) carried
     through the video by chained optical flow, with a forward-backward check at every step.
 
@@ -278,38 +348,58 @@ def track_dense(frames, step=4, mask=None, fb_threshold=1.0, max_residual=25.0,
         if m.shape != (H, W):
             raise ValueError(f"mask has shape {m.shape} but the frames are {(H, W)}")
     gy, gx = np.mgrid[0:H, 0:W].astype(np.float32)
-    ys, xs = np.mgrid[0:H:int(step), 0:W:int(step)]
+    ys, xs = np.mgrid[0 : H : int(step), 0 : W : int(step)]
     keep = m[ys, xs]
     pts = np.stack([xs[keep], ys[keep]], axis=1).astype(np.float32)
     if len(pts) < min_points:
-        raise ValueError(f"textureless video: {len(pts)} textured grid points in the first "
-                         f"frame (need at least {min_points})")
+        raise ValueError(
+            f"textureless video: {len(pts)} textured grid points in the first "
+            f"frame (need at least {min_points})"
+        )
     if max_points is not None and len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, int(max_points)).astype(int)]
     ts = _TrackSet(pts, frames[0], len(frames), n_neighbours, neighbour_px is not None)
 
-    def move(prev, cur, p):                     # dense flow both ways, sampled at p
+    def move(prev, cur, p):  # dense flow both ways, sampled at p
         fw, bw = calc(prev, cur), calc(cur, prev)
         q = p + _sample(fw, p)
         e = np.linalg.norm(q + _sample(bw, q) - p, axis=1)
-        warped = cv2.remap(cur, gx + fw[..., 0], gy + fw[..., 1], cv2.INTER_LINEAR,
-                           borderMode=cv2.BORDER_REPLICATE)
+        warped = cv2.remap(
+            cur, gx + fw[..., 0], gy + fw[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
         diff = cv2.blur(cv2.absdiff(prev, warped).astype(np.float32), (window, window))
         return q, e, ~(e <= fb_threshold) | ~(_sample(diff, p) <= max_residual)
 
-    _follow(frames, ts, move, lambda f, cur: _detect_grid(
-        ts, f, cur, frames[f], step, erode, max_points), keep_raw, neighbour_px, detect_every)
-    params = dict(step=step, fb_threshold=fb_threshold, max_residual=max_residual,
-                  neighbour_px=neighbour_px, n_neighbours=n_neighbours,
-                  window=window, flow=flow, erode=erode,
-                  max_points=max_points, detect_every=detect_every)
+    _follow(
+        frames,
+        ts,
+        move,
+        lambda f, cur: _detect_grid(ts, f, cur, frames[f], step, erode, max_points),
+        keep_raw,
+        neighbour_px,
+        detect_every,
+    )
+    params = dict(
+        step=step,
+        fb_threshold=fb_threshold,
+        max_residual=max_residual,
+        neighbour_px=neighbour_px,
+        n_neighbours=n_neighbours,
+        window=window,
+        flow=flow,
+        erode=erode,
+        max_points=max_points,
+        detect_every=detect_every,
+    )
     return ts.finish("dense", (H, W), params, keep_raw)
 
 
 # --------------------------------------------------------------------------- compatibility
 
-def tracks_from_frames(frames, max_points=200, quality=0.01, min_distance=7, window=21,
-                       fb_threshold=1.0):
+
+def tracks_from_frames(
+    frames, max_points=200, quality=0.01, min_distance=7, window=21, fb_threshold=1.0
+):
     """Complete sparse tracks only, (F, 2, P): :func:`track_sparse` without the lost ones.
 
     Raises
@@ -317,8 +407,14 @@ def tracks_from_frames(frames, max_points=200, quality=0.01, min_distance=7, win
     ValueError
         Fewer than two frames, a textureless first frame, or no complete track.
     """
-    t = track_sparse(frames, max_points=max_points, quality=quality,
-                     min_distance=min_distance, window=window, fb_threshold=fb_threshold)
+    t = track_sparse(
+        frames,
+        max_points=max_points,
+        quality=quality,
+        min_distance=min_distance,
+        window=window,
+        fb_threshold=fb_threshold,
+    )
     if not t.complete.any():
         raise ValueError("no point was tracked through every frame")
     return t.tracks[:, :, t.complete]

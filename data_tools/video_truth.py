@@ -20,14 +20,18 @@ from nrsfm.io import load_npz, save_npz
 
 from .synthetic_video import SyntheticVideo
 
-__all__ = ["GROUND_TRUTH_FORMAT", "write_video", "save_ground_truth", "load_ground_truth",
-           "score_tracks"]
+__all__ = [
+    "GROUND_TRUTH_FORMAT",
+    "write_video",
+    "save_ground_truth",
+    "load_ground_truth",
+    "score_tracks",
+]
 
 #: The ``format`` array of a ground-truth file, checked on reading.
 GROUND_TRUTH_FORMAT = "nrsfm synthetic video ground truth v1"
 
-_ARRAYS = ("uv", "triangles", "vertices", "rotations", "pixel_scale", "offsets", "id0",
-           "affine0")
+_ARRAYS = ("uv", "triangles", "vertices", "rotations", "pixel_scale", "offsets", "id0", "affine0")
 _EXPECTED = "a synthetic-video ground truth written by data_tools.save_ground_truth"
 
 
@@ -58,11 +62,13 @@ def write_video(video, folder):
     import cv2
 
     if video.frames is None:
-        raise ValueError("this SyntheticVideo has no frames (loaded from a ground-truth "
-                         "file?); render one with data_tools.make_video")
+        raise ValueError(
+            "this SyntheticVideo has no frames (loaded from a ground-truth "
+            "file?); render one with data_tools.make_video"
+        )
     frames = Path(folder) / "frames"
     frames.mkdir(parents=True, exist_ok=True)
-    for old in frames.glob("*.png"):          # a shorter video must not keep old frames
+    for old in frames.glob("*.png"):  # a shorter video must not keep old frames
         old.unlink()
     for f, img in enumerate(video.frames):
         path = frames / f"{f:06d}.png"
@@ -85,10 +91,18 @@ def save_ground_truth(video, path):
     path : Path
     """
     arrays = {k: np.asarray(getattr(video, k)) for k in _ARRAYS}
-    extra = {f"extra_{k}": np.asarray(v) for k, v in video.extra.items()
-             if isinstance(v, (np.ndarray, int, float, np.number))}
-    return save_npz(path, format=np.array(GROUND_TRUTH_FORMAT),
-                    surface=np.array(video.surface), **arrays, **extra)
+    extra = {
+        f"extra_{k}": np.asarray(v)
+        for k, v in video.extra.items()
+        if isinstance(v, (np.ndarray, int, float, np.number))
+    }
+    return save_npz(
+        path,
+        format=np.array(GROUND_TRUTH_FORMAT),
+        surface=np.array(video.surface),
+        **arrays,
+        **extra,
+    )
 
 
 def load_ground_truth(path):
@@ -115,22 +129,40 @@ def load_ground_truth(path):
     data = load_npz(path, "ground truth", _EXPECTED)
     fmt = data.get("format")
     if fmt is None or fmt.shape != () or str(fmt) != GROUND_TRUTH_FORMAT:
-        raise ValueError(f"ground truth {path} has no format {GROUND_TRUTH_FORMAT!r} "
-                         f"(found arrays: {sorted(data)}); expected {_EXPECTED}")
+        raise ValueError(
+            f"ground truth {path} has no format {GROUND_TRUTH_FORMAT!r} "
+            f"(found arrays: {sorted(data)}); expected {_EXPECTED}"
+        )
     missing = [k for k in _ARRAYS + ("surface",) if k not in data]
     if missing:
         raise ValueError(f"ground truth {path} lacks the arrays {missing}")
     V, F = data["vertices"], data["rotations"]
-    if V.ndim != 3 or V.shape[1] != 3 or F.shape != (V.shape[0], 3, 3) \
-            or data["offsets"].shape != (V.shape[0], 2) or data["id0"].ndim != 2:
-        raise ValueError(f"ground truth {path}: inconsistent shapes (vertices {V.shape}, "
-                         f"rotations {F.shape}, offsets {data['offsets'].shape}, id0 "
-                         f"{data['id0'].shape})")
-    extra = {k[len("extra_"):]: v for k, v in data.items() if k.startswith("extra_")}
-    return SyntheticVideo(frames=None, surface=str(data["surface"]), uv=data["uv"],
-                          triangles=data["triangles"], vertices=V, rotations=F,
-                          pixel_scale=float(data["pixel_scale"]), offsets=data["offsets"],
-                          id0=data["id0"], affine0=data["affine0"], extra=extra)
+    if (
+        V.ndim != 3
+        or V.shape[1] != 3
+        or F.shape != (V.shape[0], 3, 3)
+        or data["offsets"].shape != (V.shape[0], 2)
+        or data["id0"].ndim != 2
+    ):
+        raise ValueError(
+            f"ground truth {path}: inconsistent shapes (vertices {V.shape}, "
+            f"rotations {F.shape}, offsets {data['offsets'].shape}, id0 "
+            f"{data['id0'].shape})"
+        )
+    extra = {k[len("extra_") :]: v for k, v in data.items() if k.startswith("extra_")}
+    return SyntheticVideo(
+        frames=None,
+        surface=str(data["surface"]),
+        uv=data["uv"],
+        triangles=data["triangles"],
+        vertices=V,
+        rotations=F,
+        pixel_scale=float(data["pixel_scale"]),
+        offsets=data["offsets"],
+        id0=data["id0"],
+        affine0=data["affine0"],
+        extra=extra,
+    )
 
 
 def score_tracks(truth, tracks, vr):
@@ -165,17 +197,25 @@ def score_tracks(truth, tracks, vr):
     if T.ndim == 2:
         T = T.reshape(T.shape[0] // 2, 2, T.shape[1])
     if T.shape[0] != truth.n_frames:
-        raise ValueError(f"the tracks have {T.shape[0]} frames but the ground truth "
-                         f"{truth.n_frames}")
+        raise ValueError(
+            f"the tracks have {T.shape[0]} frames but the ground truth {truth.n_frames}"
+        )
     gt = truth.ground_truth(T)
     cols = np.flatnonzero(vr.used)
     scored = cols[gt["valid"][cols]]
     if scored.size < 3:
-        raise ValueError(f"only {scored.size} of the {cols.size} used tracks have ground "
-                         "truth (started on the surface); at least 3 are needed")
+        raise ValueError(
+            f"only {scored.size} of the {cols.size} used tracks have ground "
+            "truth (started on the surface); at least 3 are needed"
+        )
     X = vr.result.shapes[:, :, gt["valid"][cols]]
     G = truth.pixel_scale * gt["camera"][:, :, scored]
-    world = truth.rotations.transpose(0, 2, 1) @ G      # as Reconstruction.errors
-    return dict(n_tracks=int(T.shape[2]), n_used=int(cols.size), n_scored=int(scored.size),
-                e3d=e3d(X, G), e3d_akhter=e3d_akhter(X, world),
-                e_R=rotation_error(vr.result.rotations, truth.rotations))
+    world = truth.rotations.transpose(0, 2, 1) @ G  # as Reconstruction.errors
+    return dict(
+        n_tracks=int(T.shape[2]),
+        n_used=int(cols.size),
+        n_scored=int(scored.size),
+        e3d=e3d(X, G),
+        e3d_akhter=e3d_akhter(X, world),
+        e_R=rotation_error(vr.result.rotations, truth.rotations),
+    )

@@ -30,7 +30,7 @@ def build(src: Path) -> tuple[Path, str]:
     nb = jupytext.read(src, fmt="py:percent")
     nb.metadata = {"kernelspec": KERNEL, "language_info": {"name": "python"}}
     for i, cell in enumerate(nb.cells):
-        cell.id = f"{src.stem[:2]}-{i:02d}"       # deterministic ids: stable diffs
+        cell.id = f"{src.stem[:2]}-{i:02d}"  # deterministic ids: stable diffs
         cell.metadata = {k: v for k, v in cell.metadata.items() if k == "tags"}
         if cell.cell_type == "code":
             cell.outputs, cell.execution_count = [], None
@@ -54,24 +54,29 @@ def render(src: Path, timeout: int = 1200) -> Path:
 
     _, text = build(src)
     nb = nbformat.reads(text, as_version=4)
-    os.environ["NRSFM_VIEWER"] = "0"                     # inherited by the kernel
+    os.environ["NRSFM_VIEWER"] = "0"  # inherited by the kernel
     # the kernel runs in notebooks/: import this checkout's packages, absolute paths
-    entries = [str(HERE.parent)] + [str(Path(p).resolve()) for p in
-                                    os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    entries = [str(HERE.parent)] + [
+        str(Path(p).resolve()) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p
+    ]
     os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(entries))
-    NotebookClient(nb, timeout=timeout, kernel_name="python3",
-                   resources={"metadata": {"path": str(HERE)}}).execute()
+    NotebookClient(
+        nb, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(HERE)}}
+    ).execute()
     body, res = MarkdownExporter().from_notebook_node(
-        nb, resources={"output_files_dir": f"{src.stem}_files"})
+        nb, resources={"output_files_dir": f"{src.stem}_files"}
+    )
     DOCS.mkdir(parents=True, exist_ok=True)
     shutil.rmtree(DOCS / f"{src.stem}_files", ignore_errors=True)
     for name, data in res.get("outputs", {}).items():
         out = DOCS / name
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_bytes(data)
-    body = body.replace(str(HERE.parent) + os.sep, "")   # no machine paths in the docs
-    head = (f"<!-- rendered by `python notebooks/build_notebooks.py --render` from "
-            f"notebooks/src/{src.name} sha256={source_hash(src)}; do not edit -->\n\n")
+    body = body.replace(str(HERE.parent) + os.sep, "")  # no machine paths in the docs
+    head = (
+        f"<!-- rendered by `python notebooks/build_notebooks.py --render` from "
+        f"notebooks/src/{src.name} sha256={source_hash(src)}; do not edit -->\n\n"
+    )
     page = DOCS / f"{src.stem}.md"
     page.write_text(head + body)
     return page

@@ -12,6 +12,18 @@ from .settings import RotationSettings, Settings
 
 __version__ = "0.1.0"
 
-__all__ = ["METHODS", "AdmmSettings", "BilinearSettings", "MeasurementSettings",
-           "NRSfMWarning", "Reconstruction", "RotationSettings", "Settings", "e3d",
-           "e3d_akhter", "reconstruct", "rotation_error", "__version__"]
+__all__ = [
+    "METHODS",
+    "AdmmSettings",
+    "BilinearSettings",
+    "MeasurementSettings",
+    "NRSfMWarning",
+    "Reconstruction",
+    "RotationSettings",
+    "Settings",
+    "e3d",
+    "e3d_akhter",
+    "reconstruct",
+    "rotation_error",
+    "__version__",
+]

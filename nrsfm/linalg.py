@@ -31,7 +31,7 @@ def weighted_svt(M, thresholds):
     ev, V = np.linalg.eigh(G)
     s = np.sqrt(np.maximum(ev[::-1], 0.0))
     V = V[:, ::-1]
-    s_new = np.maximum(s - thresholds[:s.size], 0.0)
+    s_new = np.maximum(s - thresholds[: s.size], 0.0)
     keep = s_new > 0
     coef = s_new[keep] / s[keep]
     Vk = V[:, keep]

@@ -185,7 +185,7 @@ def depth_amplification(R, X, K):
         ``inf`` where a direction of a mode is seen by no camera (a static camera);
         ``nan`` for shapes that are all zero.
     """
-    R, X = np.asarray(R, float)[:, :2], np.asarray(X, float)     # from reconstruct: checked
+    R, X = np.asarray(R, float)[:, :2], np.asarray(X, float)  # from reconstruct: checked
     if X.ndim != 3 or X.shape[1] != 3 or R.shape != (X.shape[0], 2, 3):
         raise ValueError(f"R (F, 3, 3) and X (F, 3, P) expected; got {R.shape}, {X.shape}")
     C, B = _mode_factors(X, int(K))

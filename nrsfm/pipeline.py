@@ -158,9 +158,9 @@ class Reconstruction:
     def reprojection_error(self):
         """RMS of ``W_f - R_f X_f`` over all entries, in the input's units."""
         proj = (self.rotations[:, :2] @ self.shapes).reshape(self.W.shape)
-        p2 = power_of_two_scale(self.W)         # exact rescaling: no overflow/underflow
+        p2 = power_of_two_scale(self.W)  # exact rescaling: no overflow/underflow
         d = self.W / p2 - proj / p2
-        return float(np.sqrt(np.mean(d ** 2)) * p2)
+        return float(np.sqrt(np.mean(d**2)) * p2)
 
     def errors(self, shapes_gt=None, rotations_gt=None, world_shapes_gt=None):
         """Benchmark errors against ground truth.
@@ -196,8 +196,7 @@ class Reconstruction:
         out = {}
         if shapes_gt is not None:
             out["e3d"] = e3d(self.shapes, shapes_gt)
-            fixed = rotations_gt is None or np.allclose(rotations_gt, rotations_gt[:1],
-                                                        atol=1e-12)
+            fixed = rotations_gt is None or np.allclose(rotations_gt, rotations_gt[:1], atol=1e-12)
             if world_shapes_gt is not None:
                 out["e3d_akhter"] = e3d_akhter(self.shapes, world_shapes_gt)
             elif fixed:
@@ -213,18 +212,21 @@ class Reconstruction:
         """A few lines describing the run: sizes, fit, missing data, the diagnostics' notes
         (no action needed) and warnings, time."""
         F, P = self.n_frames, self.n_points
-        lines = [f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, "
-                 f"scale={self.scale:.4g}",
-                 f"  reprojection RMS {self.reprojection_error():.3g} (input units)"]
+        lines = [
+            f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, scale={self.scale:.4g}",
+            f"  reprojection RMS {self.reprojection_error():.3g} (input units)",
+        ]
         if self.observed is not None:
             c = self.completion
-            lines.append(f"  missing data: {100 * (1 - self.observed.mean()):.1f} % of the "
-                         f"observations filled ({c.method}, lags {c.lags}, "
-                         f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
-                         f"tracks undetermined (seen in too few frames: their 3D is an "
-                         f"extrapolation), {int(self.unreliable.sum())} of them unreliable "
-                         f"(the fills made from their neighbours and the model disagree)")
-        if self.diagnostics is not None:            # notes need no action; flags warned
+            lines.append(
+                f"  missing data: {100 * (1 - self.observed.mean()):.1f} % of the "
+                f"observations filled ({c.method}, lags {c.lags}, "
+                f"{c.n_iter} iterations); {int(self.undetermined.sum())} of {P} "
+                f"tracks undetermined (seen in too few frames: their 3D is an "
+                f"extrapolation), {int(self.unreliable.sum())} of them unreliable "
+                f"(the fills made from their neighbours and the model disagree)"
+            )
+        if self.diagnostics is not None:  # notes need no action; flags warned
             lines += [f"  note: {n}" for n in self.diagnostics.notes]
             lines += [f"  WARNING: {f}" for f in self.diagnostics.flags]
         t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
@@ -247,8 +249,19 @@ def _timed(timings, name):
     timings[name] = time.perf_counter() - t0
 
 
-def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing=None,
-                settings=None, seed=0, progress=False, blas_thread_limit=1):
+def reconstruct(
+    W,
+    K,
+    method=None,
+    rotations=None,
+    *,
+    shape_solver=None,
+    missing=None,
+    settings=None,
+    seed=0,
+    progress=False,
+    blas_thread_limit=1,
+):
     """Recover camera rotations and per-frame 3D shapes from 2D tracks.
 
     One run is configured one way: the keywords ``method``, ``shape_solver`` and
@@ -332,10 +345,11 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
         rotation_stage, single = None, METHODS[settings.method].single
         if rotations is None:
             with _timed(timings, "rotations"):
-                rotation_stage = estimate_rotations(fact.M_hat, K, settings.rotation,
-                                                    single=single, seed=seed, progress=say)
+                rotation_stage = estimate_rotations(
+                    fact.M_hat, K, settings.rotation, single=single, seed=seed, progress=say
+                )
             rotations = rotation_stage.rotations
-        with _timed(timings, "shape"):                # the settings' solver, or none
+        with _timed(timings, "shape"):  # the settings' solver, or none
             if settings.shape is None:
                 shape_stage = solve_pseudo_inverse(meas.Wn, rotations, K)
             else:
@@ -353,12 +367,24 @@ def reconstruct(W, K, method=None, rotations=None, *, shape_solver=None, missing
         with _timed(timings, "fill"):
             undetermined = fill_gain(fact.M_hat, completion.observed) > MAX_GAIN
             shapes, spread = fill_unseen(shapes, completion.observed, undetermined)
-    return Reconstruction(rotations=rotations, shapes=shapes, K=K, W=meas.W,
-                          row_means=meas.row_means, scale=meas.scale, factorization=fact,
-                          X_init=meas.restore(shape_stage.X_init), settings=settings,
-                          seed=seed, rotation_stage=rotation_stage, shape_stage=shape_stage,
-                          timings=timings, diagnostics=diagnostics, completion=completion,
-                          fill_spread=spread)
+    return Reconstruction(
+        rotations=rotations,
+        shapes=shapes,
+        K=K,
+        W=meas.W,
+        row_means=meas.row_means,
+        scale=meas.scale,
+        factorization=fact,
+        X_init=meas.restore(shape_stage.X_init),
+        settings=settings,
+        seed=seed,
+        rotation_stage=rotation_stage,
+        shape_stage=shape_stage,
+        timings=timings,
+        diagnostics=diagnostics,
+        completion=completion,
+        fill_spread=spread,
+    )
 
 
 def _settings(settings, **keywords):
@@ -370,7 +396,9 @@ def _settings(settings, **keywords):
     if not isinstance(settings, Settings):
         raise ValueError(f"settings must be an nrsfm.Settings; got {settings!r}")
     if given:
-        raise ValueError(f"settings= replaces the keywords {', '.join(KEYWORDS)}; got "
-                         f"{', '.join(sorted(given))} beside it, which would be ignored: "
-                         f"set them in the settings ({', '.join(KEYWORDS.values())})")
+        raise ValueError(
+            f"settings= replaces the keywords {', '.join(KEYWORDS)}; got "
+            f"{', '.join(sorted(given))} beside it, which would be ignored: "
+            f"set them in the settings ({', '.join(KEYWORDS.values())})"
+        )
     return settings

@@ -36,10 +36,10 @@ class Method(NamedTuple):
 
 #: method -> what it computes
 METHODS = {
-    "organic": Method(False, "organic"),        # the paper: K triplets averaged, Eq. 10
-    "bmm": Method(True, "nuclear"),             # Dai et al.: the first triplet, Eq. 7
-    "wnn": Method(False, "weighted"),           # every singular value weighted, Eq. 8
-    "pseudo_inverse": Method(False, None),      # rank-K truncation of pinv(R) W (Table 1)
+    "organic": Method(False, "organic"),  # the paper: K triplets averaged, Eq. 10
+    "bmm": Method(True, "nuclear"),  # Dai et al.: the first triplet, Eq. 7
+    "wnn": Method(False, "weighted"),  # every singular value weighted, Eq. 8
+    "pseudo_inverse": Method(False, None),  # rank-K truncation of pinv(R) W (Table 1)
 }
 
 #: the rotation fields that a single triplet does not use (``bmm``: nothing to average)
@@ -82,26 +82,29 @@ class Settings:
 
     def __post_init__(self):
         check_choice("method", self.method, METHODS)
-        for name, cls in (("measurement", MeasurementSettings),
-                          ("rotation", RotationSettings)):
+        for name, cls in (("measurement", MeasurementSettings), ("rotation", RotationSettings)):
             if not isinstance(getattr(self, name), cls):
-                raise ValueError(f"{name} must be a {cls.__name__}; got "
-                                 f"{getattr(self, name)!r}")
+                raise ValueError(f"{name} must be a {cls.__name__}; got {getattr(self, name)!r}")
         if self.method == "pseudo_inverse":
             if self.shape is not None:
-                raise ValueError(f"method 'pseudo_inverse' has no shape solver; got "
-                                 f"shape={self.shape!r}")
+                raise ValueError(
+                    f"method 'pseudo_inverse' has no shape solver; got shape={self.shape!r}"
+                )
         elif self.shape is None:
             object.__setattr__(self, "shape", BilinearSettings())
         elif not isinstance(self.shape, tuple(SOLVERS.values())):
-            raise ValueError(f"shape must be a BilinearSettings or an AdmmSettings; got "
-                             f"{self.shape!r}")
+            raise ValueError(
+                f"shape must be a BilinearSettings or an AdmmSettings; got {self.shape!r}"
+            )
         if self.method == "bmm":
-            given = [f for f in _AVERAGING if getattr(self.rotation, f) !=
-                     getattr(RotationSettings(), f)]
+            given = [
+                f for f in _AVERAGING if getattr(self.rotation, f) != getattr(RotationSettings(), f)
+            ]
             if given:
-                raise ValueError(f"method 'bmm' uses one triplet: {', '.join(given)} of the "
-                                 f"rotation settings would be ignored")
+                raise ValueError(
+                    f"method 'bmm' uses one triplet: {', '.join(given)} of the "
+                    f"rotation settings would be ignored"
+                )
 
     @property
     def prior(self):
@@ -126,8 +129,7 @@ class Settings:
         shape = None
         if shape_solver is not None:
             shape = SOLVERS[check_choice("shape_solver", shape_solver, SOLVERS)]()
-        return cls(method=method, shape=shape,
-                   measurement=MeasurementSettings(missing=missing))
+        return cls(method=method, shape=shape, measurement=MeasurementSettings(missing=missing))
 
 
 #: ``reconstruct``'s keywords and the :class:`Settings` field each one sets
@@ -136,4 +138,3 @@ KEYWORDS = {
     "shape_solver": "shape (BilinearSettings() or AdmmSettings())",
     "missing": "measurement.missing",
 }
-

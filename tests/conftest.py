@@ -13,7 +13,6 @@ def mocap_dir():
     folder = find_mocap_dir(root) if root else None
     if folder is None or not (folder / "pickup.mat").is_file():
         if os.environ.get("CI"):
-            pytest.fail("CI must set NRSFM_DATA to the folder that holds mocap/ "
-                        "(or mocap/ itself)")
+            pytest.fail("CI must set NRSFM_DATA to the folder that holds mocap/ (or mocap/ itself)")
         pytest.skip("NRSFM_DATA not set (or has no mocap/): benchmark-data tests skipped")
     return folder

@@ -23,13 +23,25 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def nrsfm(*args, cwd, preexec_fn=None, env_extra=None):
-    env = dict(os.environ, PYTHONPATH=str(ROOT), PWD=str(cwd), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    env = dict(
+        os.environ,
+        PYTHONPATH=str(ROOT),
+        PWD=str(cwd),
+        OMP_NUM_THREADS="1",
+        OPENBLAS_NUM_THREADS="1",
+        MKL_NUM_THREADS="1",
+    )
     env.pop("NRSFM_DEBUG", None)
     env.update(env_extra or {})
-    return subprocess.run([sys.executable, "-m", "nrsfm", *map(str, args)], cwd=cwd,
-                          env=env, capture_output=True, text=True, preexec_fn=preexec_fn,
-                          timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "nrsfm", *map(str, args)],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        preexec_fn=preexec_fn,
+        timeout=120,
+    )
 
 
 def assert_one_line_failure(proc, *fragments, code=None):
@@ -62,6 +74,7 @@ def good(tmp_path, seq):
 
 # --------------------------------------------------------------------------- success
 
+
 def test_help_lists_subcommands(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--help"])
@@ -84,8 +97,21 @@ def test_registrations_build_the_parser():
 
 def test_run_writes_exactly_the_path_given(tmp_path, good, seq, capsys):
     out = tmp_path / "result.dat"
-    assert main(["run", str(good), "-o", str(out), "--method", "pseudo_inverse",
-                 "--given-rotations", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(good),
+                "-o",
+                str(out),
+                "--method",
+                "pseudo_inverse",
+                "--given-rotations",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert f"wrote {out}\n" in text and "e3d" in text
     assert sorted(p.name for p in tmp_path.iterdir()) == ["result.dat", "seq.npz"]
@@ -93,16 +119,23 @@ def test_run_writes_exactly_the_path_given(tmp_path, good, seq, capsys):
         assert z["shapes"].shape == (30, 3, 20)
         np.testing.assert_allclose(z["rotations"], seq.rotations)
         assert int(z["K"]) == 2 and str(z["method"]) == "pseudo_inverse"
-        assert {"W", "X_init", "row_means", "scale", "version", "e3d", "e3d_akhter",
-                "e_R"} <= set(z.files)
+        assert {"W", "X_init", "row_means", "scale", "version", "e3d", "e3d_akhter", "e_R"} <= set(
+            z.files
+        )
 
 
 def test_run_default_output_and_full_keys(tmp_path, good):
     assert main(["run", str(good), "--quiet"]) == 0
     with np.load(tmp_path / "seq_nrsfm.npz") as z:
         keys = set(z.files)
-    assert {"shape_cost", "shape_data_term", "shape_grad_norm", "G",
-            "per_triplet_rotations", "kept"} <= keys
+    assert {
+        "shape_cost",
+        "shape_data_term",
+        "shape_grad_norm",
+        "G",
+        "per_triplet_rotations",
+        "kept",
+    } <= keys
 
 
 def test_ignored_arrays_give_a_one_line_warning(tmp_path, seq):
@@ -113,7 +146,8 @@ def test_ignored_arrays_give_a_one_line_warning(tmp_path, seq):
     assert proc.stderr.splitlines() == [
         f"nrsfm: warning: W-ignored-arrays: nrsfm run ignores arrays of {path} that it does "
         f"not read: ['colour'] (it reads W, K, shapes, rotations, edges); rename one if it "
-        f"was meant as input"]
+        f"was meant as input"
+    ]
 
 
 def test_float_integral_K_in_file_is_accepted(tmp_path, seq):
@@ -131,8 +165,7 @@ def test_rrd_without_path_goes_to_the_users_out_folder(tmp_path):
 @pytest.mark.parametrize("factor", [1e153, 1e-165])
 def test_any_finite_scale(tmp_path, seq, factor):
     path = tmp_path / "scaled.npz"
-    np.savez(path, W=seq.W * factor, K=2, shapes=seq.shapes * factor,
-             rotations=seq.rotations)
+    np.savez(path, W=seq.W * factor, K=2, shapes=seq.shapes * factor, rotations=seq.rotations)
     out = tmp_path / "o.npz"
     assert main(["run", str(path), "-o", str(out), "--quiet"]) == 0
     ref = tmp_path / "ref.npz"
@@ -140,12 +173,14 @@ def test_any_finite_scale(tmp_path, seq, factor):
     assert main(["run", str(ref), "-o", str(tmp_path / "r.npz"), "--quiet"]) == 0
     with np.load(out) as z, np.load(tmp_path / "r.npz") as r:
         assert np.all(np.isfinite(z["shapes"]))
-        np.testing.assert_allclose(z["shapes"] / factor, r["shapes"], rtol=0,
-                                   atol=1e-6 * np.abs(r["shapes"]).max())
+        np.testing.assert_allclose(
+            z["shapes"] / factor, r["shapes"], rtol=0, atol=1e-6 * np.abs(r["shapes"]).max()
+        )
         assert z["e3d"] < 0.1
 
 
 # --------------------------------------------------------------------------- failures
+
 
 def _write(tmp_path, name, **arrays):
     path = tmp_path / name
@@ -158,7 +193,7 @@ def _bad_inputs(tmp_path, seq, good):
     (tmp_path / "empty.npz").write_bytes(b"")
     (tmp_path / "corrupt.npz").write_bytes(good.read_bytes()[:300])
     raw = bytearray(good.read_bytes())
-    raw[200:260] = b"\0" * 60                       # damaged member data, valid zip layout
+    raw[200:260] = b"\0" * 60  # damaged member data, valid zip layout
     (tmp_path / "damaged.npz").write_bytes(bytes(raw))
     np.save(tmp_path / "w.npy", seq.W)
     (tmp_path / "text.npz").write_text("W = 1, 2, 3\n")
@@ -184,51 +219,98 @@ def _bad_inputs(tmp_path, seq, good):
         "--K 2.7": (["run", good, "--K", "2.7"], "2.7"),
         "--K -1": (["run", good, "--K=-1"], "at least 1"),
         "--seed -1": (["run", good, "--seed=-1"], "non-negative"),
-        "W strings": (["run", _write(tmp_path, "ws.npz", W=np.array([["a"] * 5] * 4),
-                                     K=1)], "numeric"),
-        "W nan": (["run", _write(tmp_path, "nan.npz", W=np.full((10, 6), np.nan), K=1)],
-                  "observes 0 points"),
+        "W strings": (
+            ["run", _write(tmp_path, "ws.npz", W=np.array([["a"] * 5] * 4), K=1)],
+            "numeric",
+        ),
+        "W nan": (
+            ["run", _write(tmp_path, "nan.npz", W=np.full((10, 6), np.nan), K=1)],
+            "observes 0 points",
+        ),
         "W 1-D": (["run", _write(tmp_path, "w1.npz", W=np.zeros(10), K=1)], "(2F, P)"),
-        "W constant": (["run", _write(tmp_path, "wc.npz", W=np.ones((10, 6)), K=1)],
-                       "constant"),
-        "shapes points": (["run", _write(tmp_path, "sp.npz", W=seq.W, K=2,
-                                         shapes=seq.shapes[:, :, :5])], "5 points"),
-        "shapes frames": (["run", _write(tmp_path, "sf.npz", W=seq.W, K=2,
-                                         shapes=seq.shapes[:3])], "3 frames"),
-        "shapes 2-D": (["run", _write(tmp_path, "s2.npz", W=seq.W, K=2,
-                                      shapes=seq.W)], "(F, 3, P)"),
-        "rotations bad": (["run", _write(tmp_path, "rb.npz", W=seq.W, K=2,
-                                         rotations=seq.rotations * 2)], "orthonormal"),
-        "edges bad": (["run", _write(tmp_path, "eb.npz", W=seq.W, K=2,
-                                     edges=np.array([[0, 99]]))], "edges"),
-        "given rotations absent": (["run", _write(tmp_path, "nr.npz", W=seq.W, K=2),
-                                    "--given-rotations"], "rotations"),
+        "W constant": (["run", _write(tmp_path, "wc.npz", W=np.ones((10, 6)), K=1)], "constant"),
+        "shapes points": (
+            ["run", _write(tmp_path, "sp.npz", W=seq.W, K=2, shapes=seq.shapes[:, :, :5])],
+            "5 points",
+        ),
+        "shapes frames": (
+            ["run", _write(tmp_path, "sf.npz", W=seq.W, K=2, shapes=seq.shapes[:3])],
+            "3 frames",
+        ),
+        "shapes 2-D": (
+            ["run", _write(tmp_path, "s2.npz", W=seq.W, K=2, shapes=seq.W)],
+            "(F, 3, P)",
+        ),
+        "rotations bad": (
+            ["run", _write(tmp_path, "rb.npz", W=seq.W, K=2, rotations=seq.rotations * 2)],
+            "orthonormal",
+        ),
+        "edges bad": (
+            ["run", _write(tmp_path, "eb.npz", W=seq.W, K=2, edges=np.array([[0, 99]]))],
+            "edges",
+        ),
+        "given rotations absent": (
+            ["run", _write(tmp_path, "nr.npz", W=seq.W, K=2), "--given-rotations"],
+            "rotations",
+        ),
         "output is a folder": (["run", good, "-o", tmp_path], "existing folder"),
-        "output folder missing": (["run", good, "-o", tmp_path / "no" / "o.npz"],
-                                  "does not exist"),
+        "output folder missing": (["run", good, "-o", tmp_path / "no" / "o.npz"], "does not exist"),
         "output read-only folder": (["run", good, "-o", "/sys/o.npz"], "not writable"),
         "output is the input": (["run", good, "-o", good], "overwrite the input"),
         "rrd unwritable": (["run", good, "--rrd", "/sys/o.rrd"], "not writable"),
-        "rrd folder missing": (["demo", "--rrd", tmp_path / "no" / "d.rrd"],
-                               "does not exist"),
+        "rrd folder missing": (["demo", "--rrd", tmp_path / "no" / "d.rrd"], "does not exist"),
         "rrd is a folder": (["demo", "--rrd", tmp_path / "f.rrd"], "existing folder"),
         "rrd suffix": (["demo", "--rrd", tmp_path / "d.txt"], ".rrd"),
         "unknown method": (["demo", "--method", "magic"], "invalid choice"),
         "no command": ([], "required"),
         "unknown sequence": (["mocap", "juggling", "--data", tmp_path], "unknown MoCap"),
-        "mocap folder missing": (["mocap", "drink", "--data", tmp_path / "none"],
-                                 "not found"),
+        "mocap folder missing": (["mocap", "drink", "--data", tmp_path / "none"], "not found"),
     }
 
 
-CASES = ["missing", "folder input", "empty", "corrupt", "damaged", "text", "npy", "object",
-         "no W", "no K", "K list", "K two", "K 2.7", "K bool", "K too big", "--K 0",
-         "--K 2.7", "--K -1", "--seed -1", "W strings", "W nan", "W 1-D", "W constant",
-         "shapes points", "shapes frames", "shapes 2-D", "rotations bad", "edges bad",
-         "given rotations absent", "output is a folder", "output folder missing",
-         "output read-only folder", "output is the input", "rrd unwritable",
-         "rrd folder missing", "rrd is a folder", "rrd suffix", "unknown method",
-         "no command", "unknown sequence", "mocap folder missing"]
+CASES = [
+    "missing",
+    "folder input",
+    "empty",
+    "corrupt",
+    "damaged",
+    "text",
+    "npy",
+    "object",
+    "no W",
+    "no K",
+    "K list",
+    "K two",
+    "K 2.7",
+    "K bool",
+    "K too big",
+    "--K 0",
+    "--K 2.7",
+    "--K -1",
+    "--seed -1",
+    "W strings",
+    "W nan",
+    "W 1-D",
+    "W constant",
+    "shapes points",
+    "shapes frames",
+    "shapes 2-D",
+    "rotations bad",
+    "edges bad",
+    "given rotations absent",
+    "output is a folder",
+    "output folder missing",
+    "output read-only folder",
+    "output is the input",
+    "rrd unwritable",
+    "rrd folder missing",
+    "rrd is a folder",
+    "rrd suffix",
+    "unknown method",
+    "no command",
+    "unknown sequence",
+    "mocap folder missing",
+]
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -253,17 +335,23 @@ def test_read_only_folder_by_permissions(tmp_path, good):
     ro.mkdir()
     ro.chmod(0o555)
     try:
-        assert_one_line_failure(nrsfm("run", good, "-o", ro / "o.npz", cwd=tmp_path),
-                                "not writable")
+        assert_one_line_failure(
+            nrsfm("run", good, "-o", ro / "o.npz", cwd=tmp_path), "not writable"
+        )
     finally:
         ro.chmod(0o755)
 
 
 def test_mocap_without_data_folder(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "NRSFM_DATA"}
-    proc = subprocess.run([sys.executable, "-m", "nrsfm", "mocap", "pickup"], cwd=tmp_path,
-                          env=dict(env, PYTHONPATH=str(ROOT), PWD=str(tmp_path)),
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "nrsfm", "mocap", "pickup"],
+        cwd=tmp_path,
+        env=dict(env, PYTHONPATH=str(ROOT), PWD=str(tmp_path)),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert_one_line_failure(proc, "NRSFM_DATA", "--data", code=2)
 
 
@@ -272,12 +360,12 @@ def test_mocap_data_folder_both_forms(tmp_path, form):
     """``--data`` and ``NRSFM_DATA`` take the folder that holds mocap/ or mocap/ itself."""
     folder = tmp_path / "data" / "mocap"
     folder.mkdir(parents=True)
-    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.random.default_rng(0)
-                                            .standard_normal((30, 12))})
+    scipy.io.savemat(
+        folder / "shark.mat", {"P3_gt": np.random.default_rng(0).standard_normal((30, 12))}
+    )
     given = folder.parent if form == "parent" else folder
     for args, env in (((("--data", given)), None), ((), {"NRSFM_DATA": str(given)})):
-        proc = nrsfm("mocap", "shark", *args, "--K", "1", "--quiet", cwd=tmp_path,
-                     env_extra=env)
+        proc = nrsfm("mocap", "shark", *args, "--K", "1", "--quiet", cwd=tmp_path, env_extra=env)
         assert proc.returncode == 0, proc.stderr
         assert "errors against ground truth: e3d" in proc.stdout
 
@@ -286,15 +374,20 @@ def test_mocap_missing_file_names_the_folder_to_use(tmp_path):
     (tmp_path / "data" / "mocap").mkdir(parents=True)
     scipy.io.savemat(tmp_path / "data" / "mocap" / "pickup.mat", {"W": np.zeros((2, 2))})
     proc = nrsfm("mocap", "pickup", "--data", tmp_path, cwd=tmp_path)
-    assert_one_line_failure(proc, f"looked in {tmp_path / 'mocap'} (no such folder) and "
-                                  f"{tmp_path};", f"{tmp_path / 'data'} holds it", code=1)
+    assert_one_line_failure(
+        proc,
+        f"looked in {tmp_path / 'mocap'} (no such folder) and {tmp_path};",
+        f"{tmp_path / 'data'} holds it",
+        code=1,
+    )
 
 
 def test_given_rotations_without_ground_truth_on_mocap(tmp_path):
     folder = tmp_path / "mocap"
     folder.mkdir()
-    scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.random.default_rng(0)
-                                            .standard_normal((30, 12))})
+    scipy.io.savemat(
+        folder / "shark.mat", {"P3_gt": np.random.default_rng(0).standard_normal((30, 12))}
+    )
     proc = nrsfm("mocap", "shark", "--data", folder, "--given-rotations", cwd=tmp_path)
     assert_one_line_failure(proc, "no ground-truth rotations", code=2)
     proc = nrsfm("mocap", "shark", "--data", folder, "--K", "100", cwd=tmp_path)
@@ -303,10 +396,10 @@ def test_given_rotations_without_ground_truth_on_mocap(tmp_path):
 
 def _corrupt_mat_files(folder, good_mat):
     folder.mkdir()
-    (folder / "drink.mat").write_bytes(b"")                              # MatReadError
-    (folder / "pickup.mat").write_bytes(good_mat[:5000])                 # truncated
+    (folder / "drink.mat").write_bytes(b"")  # MatReadError
+    (folder / "pickup.mat").write_bytes(good_mat[:5000])  # truncated
     (folder / "yoga.mat").write_bytes(np.random.default_rng(0).bytes(4096))
-    scipy.io.savemat(folder / "stretch.mat", {"X": np.zeros(3)})         # KeyError
+    scipy.io.savemat(folder / "stretch.mat", {"X": np.zeros(3)})  # KeyError
     scipy.io.savemat(folder / "dance.mat", {"W": np.zeros((10, 4)), "S": np.zeros((3, 4))})
     scipy.io.savemat(folder / "shark.mat", {"P3_gt": np.zeros((7, 4))})  # IndexError-like
     scipy.io.savemat(folder / "face.mat", {"P3_gt": np.array(["ab"])})
@@ -317,8 +410,7 @@ def _corrupt_mat_files(folder, good_mat):
 def test_corrupt_mat_files(tmp_path, name):
     rng = np.random.default_rng(1)
     buf = tmp_path / "valid.mat"
-    scipy.io.savemat(buf, {"W": rng.standard_normal((40, 30)),
-                           "S": rng.standard_normal((60, 30))})
+    scipy.io.savemat(buf, {"W": rng.standard_normal((40, 30)), "S": rng.standard_normal((60, 30))})
     _corrupt_mat_files(tmp_path / "mocap", buf.read_bytes())
     proc = nrsfm("mocap", name, "--data", tmp_path / "mocap", cwd=tmp_path)
     assert_one_line_failure(proc, f"{name}.mat", code=1)
@@ -326,8 +418,9 @@ def test_corrupt_mat_files(tmp_path, name):
 
 def test_failed_writes_leave_existing_outputs_byte_identical(tmp_path, good):
     out, rrd = tmp_path / "result.npz", tmp_path / "rec.rrd"
-    proc = nrsfm("run", good, "-o", out, "--rrd", rrd, "--quiet", "--method",
-                 "pseudo_inverse", cwd=tmp_path)
+    proc = nrsfm(
+        "run", good, "-o", out, "--rrd", rrd, "--quiet", "--method", "pseudo_inverse", cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr
     before = {p: digest(p) for p in (out, rrd)}
 
@@ -335,26 +428,44 @@ def test_failed_writes_leave_existing_outputs_byte_identical(tmp_path, good):
         return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
 
     # other settings than the first run: the new content would differ from the old
-    proc = nrsfm("run", good, "-o", out, "--quiet", cwd=tmp_path,
-                 preexec_fn=limit_to(out.stat().st_size // 2))
+    proc = nrsfm(
+        "run",
+        good,
+        "-o",
+        out,
+        "--quiet",
+        cwd=tmp_path,
+        preexec_fn=limit_to(out.stat().st_size // 2),
+    )
     assert_one_line_failure(proc, str(out), code=1)
-    proc = nrsfm("demo", "--rrd", rrd, "--quiet", "--method", "pseudo_inverse",
-                 cwd=tmp_path, preexec_fn=limit_to(rrd.stat().st_size // 2))
+    proc = nrsfm(
+        "demo",
+        "--rrd",
+        rrd,
+        "--quiet",
+        "--method",
+        "pseudo_inverse",
+        cwd=tmp_path,
+        preexec_fn=limit_to(rrd.stat().st_size // 2),
+    )
     assert_one_line_failure(proc, str(rrd), code=1)
     assert {p: digest(p) for p in (out, rrd)} == before
     leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
     assert leftovers == []
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["video", "v.avi", "--K", "0"], "--K"),
-    (["video", "v.avi", "--seed", "-1"], "--seed"),
-    (["video", "v.avi", "--step", "0"], "--step"),
-    (["track", "v.avi", "--max-frames", "x"], "--max-frames"),
-    (["benchmark", "--out", "o", "--workers", "0"], "--workers"),
-    (["benchmark", "--out", "o", "--seed", "-2"], "--seed"),
-    (["video", "v.avi", "--rrd", "v.txt"], ".rrd"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["video", "v.avi", "--K", "0"], "--K"),
+        (["video", "v.avi", "--seed", "-1"], "--seed"),
+        (["video", "v.avi", "--step", "0"], "--step"),
+        (["track", "v.avi", "--max-frames", "x"], "--max-frames"),
+        (["benchmark", "--out", "o", "--workers", "0"], "--workers"),
+        (["benchmark", "--out", "o", "--seed", "-2"], "--seed"),
+        (["video", "v.avi", "--rrd", "v.txt"], ".rrd"),
+    ],
+)
 def test_every_subcommand_checks_arguments_the_same_way(tmp_path, args, fragment):
     """One set of validators and one exit status (2) for a bad command line, in every
     subcommand; checked before any work (the video file does not exist)."""
@@ -385,9 +496,22 @@ def test_core_does_not_import_data_tools():
 
 def test_run_with_the_admm_shape_solver(tmp_path, good, seq):
     out = tmp_path / "admm.npz"
-    assert main(["run", str(good), "-o", str(out), "--shape-solver", "admm",
-                 "--given-rotations", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(good),
+                "-o",
+                str(out),
+                "--shape-solver",
+                "admm",
+                "--given-rotations",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     with np.load(out) as z:
         assert z["shapes"].shape == seq.shapes.shape
-        assert "shape_rho" in z.files                    # the ADMM's penalty schedule ran
-        assert float(z["e3d"]) < 0.1                     # noise-free, true cameras
+        assert "shape_rho" in z.files  # the ADMM's penalty schedule ran
+        assert float(z["e3d"]) < 0.1  # noise-free, true cameras

@@ -47,21 +47,28 @@ def test_jacobian_matches_finite_differences():
     for i in range(G.size):
         d = np.zeros(G.size)
         d[i] = h
-        Jn[:, i] = (C.triplet_residuals(G + d.reshape(G.shape), M, w)
-                    - C.triplet_residuals(G - d.reshape(G.shape), M, w)) / (2 * h)
+        Jn[:, i] = (
+            C.triplet_residuals(G + d.reshape(G.shape), M, w)
+            - C.triplet_residuals(G - d.reshape(G.shape), M, w)
+        ) / (2 * h)
     np.testing.assert_allclose(J, Jn, rtol=1e-5, atol=1e-6)
     assert C.triplet_cost(G, M, w) == pytest.approx(float(r @ r))
     frames = C._Frames(M, w)
-    np.testing.assert_allclose(frames.gradient(frames.products(G)).ravel(), J.T @ r,
-                               rtol=1e-12, atol=1e-12 * np.abs(J.T @ r).max())
+    np.testing.assert_allclose(
+        frames.gradient(frames.products(G)).ravel(),
+        J.T @ r,
+        rtol=1e-12,
+        atol=1e-12 * np.abs(J.T @ r).max(),
+    )
 
 
 def test_reused_jacobian_gram_reaches_the_same_minimum():
     M, _ = _M(2, noise=0.02)
     G0 = np.random.default_rng(3).standard_normal((6, 3))
     G, _, _ = C.refine_triplet(G0, M, tol=1e-14, max_iter=2000)
-    Gr, _, _ = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6,
-                                reuse=1e-3)
+    Gr, _, _ = C.refine_triplet(
+        G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6, reuse=1e-3
+    )
     Gf, _, _ = C.refine_triplet(G, M + 1e-3 * M[::-1], tol=1e-14, max_iter=2000, lam0=1e-6)
     Q = C.triplet_cost(Gr, M + 1e-3 * M[::-1]), C.triplet_cost(Gf, M + 1e-3 * M[::-1])
     assert Q[0] == pytest.approx(Q[1], rel=1e-10)

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import data_tools as dt
-from data_tools.mocap import AKHTER, TORRESANI
+from data_tools.mocap import AKHTER
 
 
 @pytest.mark.parametrize("name", dt.MOCAP_NAMES)
@@ -16,13 +16,15 @@ def test_load_mocap_shapes_and_camera_frame(mocap_dir, name):
     assert np.abs(seq.W.mean(axis=1)).max() < 1e-9 * np.abs(seq.W).max()
     assert np.abs(seq.shapes.mean(axis=2)).max() < 1e-9 * np.abs(seq.shapes).max()
     # camera-frame ground truth reproduces W by orthographic projection
-    np.testing.assert_allclose(seq.shapes[:, :2].reshape(2 * F, P), seq.W,
-                               atol=1e-9 * np.abs(seq.W).max())
+    np.testing.assert_allclose(
+        seq.shapes[:, :2].reshape(2 * F, P), seq.W, atol=1e-9 * np.abs(seq.W).max()
+    )
     if name in AKHTER:
         R = seq.rotations
         assert R.shape == (F, 3, 3)
-        np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
-                                   atol=1e-9)
+        np.testing.assert_allclose(
+            R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), atol=1e-9
+        )
         np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-9)
         np.testing.assert_allclose(R @ seq.world_shapes, seq.shapes, atol=1e-12)
     else:
@@ -31,9 +33,16 @@ def test_load_mocap_shapes_and_camera_frame(mocap_dir, name):
 
 def test_sizes_match_the_paper(mocap_dir):
     sizes = {n: (s.n_frames, s.n_points) for n, s in dt.load_all(mocap_dir).items()}
-    assert sizes == {"drink": (1102, 41), "pickup": (357, 41), "yoga": (307, 41),
-                     "stretch": (370, 41), "dance": (264, 75), "face": (316, 40),
-                     "walking": (260, 55), "shark": (240, 91)}
+    assert sizes == {
+        "drink": (1102, 41),
+        "pickup": (357, 41),
+        "yoga": (307, 41),
+        "stretch": (370, 41),
+        "dance": (264, 75),
+        "face": (316, 40),
+        "walking": (260, 55),
+        "shark": (240, 91),
+    }
 
 
 def test_akhter_layout_skeleton_and_scale(mocap_dir):
@@ -134,8 +143,9 @@ def _runs(column):
     return int(gaps[0]) + int(np.sum(gaps[1:] & ~gaps[:-1]))
 
 
-@pytest.mark.parametrize("pattern", [p for p in dt.noise.PATTERNS
-                                     if p not in ("uniform", "tracking")])
+@pytest.mark.parametrize(
+    "pattern", [p for p in dt.noise.PATTERNS if p not in ("uniform", "tracking")]
+)
 def test_track_patterns_honour_the_fraction_their_shape_and_the_seed(pattern):
     """lost / late / block: exactly round(fraction P) tracks hit, each with one gap of the
     pattern's shape; the same seed the same mask, another seed another."""
@@ -146,11 +156,11 @@ def test_track_patterns_honour_the_fraction_their_shape_and_the_seed(pattern):
     assert hit.sum() == round(0.3 * P) == 12
     assert all(_runs(mask[:, p]) == 1 for p in np.flatnonzero(hit))
     tenth = -(-F // 10)
-    if pattern == "lost":                        # seen in the first tenth, lost to the end
+    if pattern == "lost":  # seen in the first tenth, lost to the end
         assert mask[:tenth].all() and not mask[-1, hit].any()
-    elif pattern == "late":                      # unseen at first, seen in the last tenth
+    elif pattern == "late":  # unseen at first, seen in the last tenth
         assert mask[-tenth:].all() and not mask[0, hit].any()
-    else:                                        # gone for a block and back
+    else:  # gone for a block and back
         assert mask[0].all() and mask[-1].all()
         assert (~mask[:, hit]).sum(axis=0).min() >= tenth
     np.testing.assert_array_equal(np.isnan(Wm), np.repeat(~mask, 2, axis=0))

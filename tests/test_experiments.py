@@ -6,19 +6,42 @@ import numpy as np
 import pytest
 
 import data_tools as dt
-from nrsfm.experiments import (Task, build_plan, load_sequence, run_task, run_tasks, runner,
-                               unique_tasks)
+from nrsfm.experiments import (
+    Task,
+    build_plan,
+    load_sequence,
+    run_task,
+    run_tasks,
+    runner,
+    unique_tasks,
+)
 
 SEQS = ["synthetic-1", "synthetic-2"]
 
 
 def _tiny_tasks():
-    ts = [Task.make("mocap", sequence=s, method=m, K=2, seed=0, data=None)
-          for s in SEQS for m in ("organic", "bmm")]
-    ts += [Task.make("noise", sequence="synthetic-1", method="organic", sigma=0.05, run=r,
-                     seed=0, data=None) for r in range(2)]
-    ts += [Task.make("missing", sequence="synthetic-3-40-24-2", method="organic",
-                     pattern="uniform", fraction=0.2, seed=0, data=None)]
+    ts = [
+        Task.make("mocap", sequence=s, method=m, K=2, seed=0, data=None)
+        for s in SEQS
+        for m in ("organic", "bmm")
+    ]
+    ts += [
+        Task.make(
+            "noise", sequence="synthetic-1", method="organic", sigma=0.05, run=r, seed=0, data=None
+        )
+        for r in range(2)
+    ]
+    ts += [
+        Task.make(
+            "missing",
+            sequence="synthetic-3-40-24-2",
+            method="organic",
+            pattern="uniform",
+            fraction=0.2,
+            seed=0,
+            data=None,
+        )
+    ]
     return ts
 
 
@@ -69,16 +92,17 @@ def test_interrupted_sweep_resumes_without_redoing(tmp_path, monkeypatch):
 
     def interrupt(task, rows, cached):
         if len(calls) == 3:
-            raise Stop                                    # as if killed after 3 tasks
+            raise Stop  # as if killed after 3 tasks
 
     with pytest.raises(Stop):
         run_tasks(tasks, cache_dir=tmp_path, workers=1, progress=interrupt)
     assert len(calls) == 3 and len(list(tmp_path.glob("*.json"))) == 3
     calls.clear()
     seen = []
-    rows = run_tasks(tasks, cache_dir=tmp_path, workers=1,
-                     progress=lambda t, r, cached: seen.append(cached))
-    assert len(calls) == len(tasks) - 3                   # only the unfinished ones
+    rows = run_tasks(
+        tasks, cache_dir=tmp_path, workers=1, progress=lambda t, r, cached: seen.append(cached)
+    )
+    assert len(calls) == len(tasks) - 3  # only the unfinished ones
     assert seen.count(True) == 3
     assert _strip_times(rows) == _strip_times(run_tasks(tasks, workers=1))
 
@@ -88,8 +112,9 @@ def test_corrupt_or_foreign_cache_file_is_rerun(tmp_path):
     (tmp_path / f"{t.key}.json").write_text("{not json")
     assert runner.load_cached(t, tmp_path) is None
     other = _tiny_tasks()[1]
-    (tmp_path / f"{t.key}.json").write_text(json.dumps(
-        dict(experiment=other.experiment, params=other.params_json, rows=[])))
+    (tmp_path / f"{t.key}.json").write_text(
+        json.dumps(dict(experiment=other.experiment, params=other.params_json, rows=[]))
+    )
     assert runner.load_cached(t, tmp_path) is None
     run_tasks([t], cache_dir=tmp_path)
     assert runner.load_cached(t, tmp_path)[0]["sequence"] == "synthetic-1"
@@ -105,12 +130,20 @@ def test_run_tasks_rejects_bad_arguments():
 
 def test_plan_covers_every_experiment():
     plan = build_plan(sequences=["synthetic-1"], quick=True)
-    assert set(plan) == {"mocap", "pseudo_inverse", "rotation_ablation", "noise", "missing",
-                         "n_ablation", "k_sweep", "shape"}
+    assert set(plan) == {
+        "mocap",
+        "pseudo_inverse",
+        "rotation_ablation",
+        "noise",
+        "missing",
+        "n_ablation",
+        "k_sweep",
+        "shape",
+    }
     tasks = unique_tasks(plan)
     assert len({t.key for t in tasks}) == len(tasks)
     full = build_plan(sequences=["synthetic-1"], only=["noise"])
-    assert len(full["noise"]) == 6 * 4 * 10                  # sigmas x methods x runs
+    assert len(full["noise"]) == 6 * 4 * 10  # sigmas x methods x runs
     with pytest.raises(ValueError, match="unknown experiment"):
         build_plan(only=["tables"], sequences=["synthetic-1"])
 
@@ -121,21 +154,21 @@ def test_shape_table_rows_cells_and_ratio():
     from nrsfm.experiments.shape import COLUMNS, run_shape, shape_rows, shape_table
 
     plan = build_plan(only=["shape"], quick=True, external="/nonexistent")
-    assert len(plan["shape"]) == 2 * len(COLUMNS)            # rank-deficient, exact
-    assert len(shape_rows()) == 4 + 8 + 2 + 24                # without the back row
+    assert len(plan["shape"]) == 2 * len(COLUMNS)  # rank-deficient, exact
+    assert len(shape_rows()) == 4 + 8 + 2 + 24  # without the back row
     row = dict(kind="exact", K=2, scale=1e3)
     (cell,) = run_shape(row, "default")
     assert cell["row"] == "exact rank K = 2" and cell["e3d"] < 1e-8
-    vals = [0.02, 0.01] + [0.04] * (len(COLUMNS) - 2)           # default, then the others
-    rows = [dict(row="a", kind="mocap", column=c, e3d=e, t_shape=1.0)
-            for c, e in zip(COLUMNS, vals)]
-    rows += [dict(row="b", kind="noise", column="default", e3d=e, t_shape=1.0)
-             for e in (0.1, 0.3)]
+    vals = [0.02, 0.01] + [0.04] * (len(COLUMNS) - 2)  # default, then the others
+    rows = [
+        dict(row="a", kind="mocap", column=c, e3d=e, t_shape=1.0) for c, e in zip(COLUMNS, vals)
+    ]
+    rows += [dict(row="b", kind="noise", column="default", e3d=e, t_shape=1.0) for e in (0.1, 0.3)]
     columns, lines, _ = shape_table(rows)
     assert columns[-2:] == ["best", "default / best"]
     assert lines[0][1:] == vals + [0.01, 2.0]
     assert lines[1][1] == pytest.approx(0.2)
-    assert lines[1][2:] == [None] * (len(COLUMNS) + 1)     # cells no task filled: no best
+    assert lines[1][2:] == [None] * (len(COLUMNS) + 1)  # cells no task filled: no best
 
 
 def _rigid_motion(F=20, P=12, seed=0):
@@ -143,7 +176,7 @@ def _rigid_motion(F=20, P=12, seed=0):
     rng = np.random.default_rng(seed)
     body = rng.standard_normal((3, P))
     Q = np.linalg.qr(rng.standard_normal((F, 3, 3)))[0]
-    Q *= np.sign(np.linalg.det(Q))[:, None, None]            # proper rotations
+    Q *= np.sign(np.linalg.det(Q))[:, None, None]  # proper rotations
     return Q @ body + rng.standard_normal((F, 3, 1))
 
 
@@ -154,14 +187,14 @@ def test_rigid_neighbour_fill_is_exact_on_a_rigid_body():
 
     X = _rigid_motion()
     observed = np.ones((20, 12), bool)
-    observed[8:, 3] = False                                   # lost to the end
-    observed[:5, 7] = False                                   # starts late
-    observed[10:14, [0, 1, 2]] = False                        # a block of three
-    wrong = np.where(observed[:, None, :], X, 100.0)          # what the fill must replace
+    observed[8:, 3] = False  # lost to the end
+    observed[:5, 7] = False  # starts late
+    observed[10:14, [0, 1, 2]] = False  # a block of three
+    wrong = np.where(observed[:, None, :], X, 100.0)  # what the fill must replace
     filled = rigid_neighbour_fill(wrong, observed, k=4)
     np.testing.assert_allclose(filled, X, atol=1e-9)
     deformed = wrong.copy()
-    deformed[:, :, 5] += 1.0                                  # a neighbour that slides
+    deformed[:, :, 5] += 1.0  # a neighbour that slides
     assert np.abs(rigid_neighbour_fill(deformed, observed)[8:, :, 3] - X[8:, :, 3]).max() > 0.1
     with pytest.raises(ValueError, match="k must be at least 1"):
         rigid_neighbour_fill(X, observed, k=0)
@@ -179,8 +212,9 @@ def test_point_errors_and_seen_e3d_agree_with_e3d():
     gt = rng.standard_normal((6, 3, 10))
     est = 2.0 * gt + 0.1 * rng.standard_normal(gt.shape)
     err = point_errors(est, gt)
-    np.testing.assert_allclose(np.sqrt(np.mean(err ** 2, axis=1)),
-                               nrsfm.e3d(est, gt, per_frame=True), rtol=1e-12)
+    np.testing.assert_allclose(
+        np.sqrt(np.mean(err**2, axis=1)), nrsfm.e3d(est, gt, per_frame=True), rtol=1e-12
+    )
     observed = np.ones((6, 10), bool)
     assert e3d_seen(est, gt, observed) == pytest.approx(nrsfm.e3d(est, gt), rel=1e-12)
     observed[2:, 4] = False
@@ -197,19 +231,36 @@ def test_missing_tracks_plan_runs_and_table():
     quick set: one), a bad pattern named, a row with the table's fields."""
     from nrsfm.experiments.missing_tracks import COLUMNS, missing_track_table
 
-    quick = [t for t in build_plan(only=["missing"], sequences=["synthetic-1"],
-                                   quick=True)["missing"] if t.experiment == "missing_tracks"]
+    quick = [
+        t
+        for t in build_plan(only=["missing"], sequences=["synthetic-1"], quick=True)["missing"]
+        if t.experiment == "missing_tracks"
+    ]
     assert [t.params["pattern"] for t in quick] == ["lost"]
     full = build_plan(only=["missing"], sequences=["drink", "pickup", "dance"])["missing"]
-    cells = {(t.params["sequence"], t.params["pattern"]) for t in full
-             if t.experiment == "missing_tracks"}
-    assert cells == {(n, p) for n in ("drink", "pickup")
-                     for p in ("uniform", "lost", "late", "block")}
+    cells = {
+        (t.params["sequence"], t.params["pattern"])
+        for t in full
+        if t.experiment == "missing_tracks"
+    }
+    assert cells == {
+        (n, p) for n in ("drink", "pickup") for p in ("uniform", "lost", "late", "block")
+    }
     with pytest.raises(ValueError, match="missing pattern must be one of"):
-        build_plan(only=["missing"], sequences=["synthetic-1"],
-                   overrides={"track_patterns": ("lost-to-the-end",)})
-    task = Task.make("missing_tracks", sequence="synthetic-3-40-24-2", pattern="late",
-                     fraction=0.3, drop_seed=1, seed=0, data=None)     # converges: no warning
+        build_plan(
+            only=["missing"],
+            sequences=["synthetic-1"],
+            overrides={"track_patterns": ("lost-to-the-end",)},
+        )
+    task = Task.make(
+        "missing_tracks",
+        sequence="synthetic-3-40-24-2",
+        pattern="late",
+        fraction=0.3,
+        drop_seed=1,
+        seed=0,
+        data=None,
+    )  # converges: no warning
     (row,) = run_task(task)
     assert len(row["lost"]) == 7 and set(row["flagged"]) <= set(row["lost"])
     assert len(row["point_fill"]) == len(row["point_fill_rigid"]) == 7
@@ -217,13 +268,18 @@ def test_missing_tracks_plan_runs_and_table():
     columns, (line,), note = missing_track_table([row])
     assert columns == COLUMNS and len(line) == len(COLUMNS) and "seed=1" in note
     assert line[:3] == ["synthetic-3-40-24-2", "late", row["missing"]]
-    fake = dict(row, lost=[2, 5, 9], flagged=[5, 9], point_fill=[0.01, 0.3, 0.12],
-                point_fill_rigid=[0.02, 0.04, 0.2])
+    fake = dict(
+        row,
+        lost=[2, 5, 9],
+        flagged=[5, 9],
+        point_fill=[0.01, 0.3, 0.12],
+        point_fill_rigid=[0.02, 0.04, 0.2],
+    )
     (line,) = missing_track_table([fake])[1]
     assert [line[i] for i in (11, 13, 16)] == ["0.12-0.30", "0.01-0.01", "0.02-0.20"]
 
 
-CAP_WARNING = "W-completion-cap"     # the id (docs/warnings.md); no colon: a filter field
+CAP_WARNING = "W-completion-cap"  # the id (docs/warnings.md); no colon: a filter field
 
 
 # known: the missing-data tasks on synthetic-1 (F = 30, P = 15; 30% and 50%
@@ -233,19 +289,49 @@ def test_benchmark_command_writes_tables_and_plots(tmp_path, capsys):
     from nrsfm.cli import main
 
     out = tmp_path / "bench"
-    rc = main(["benchmark", "--out", str(out), "--sequences", "synthetic-1", "--quick",
-               "--only", "mocap", "missing", "--quiet"])
+    rc = main(
+        [
+            "benchmark",
+            "--out",
+            str(out),
+            "--sequences",
+            "synthetic-1",
+            "--quick",
+            "--only",
+            "mocap",
+            "missing",
+            "--quiet",
+        ]
+    )
     assert rc == 0
     err = capsys.readouterr().err.splitlines()
     assert all(line.startswith(f"nrsfm: warning: {CAP_WARNING}") for line in err), err
-    for name in ("mocap.md", "mocap.csv", "missing.md", "missing_curve.png",
-                 "missing_tracks.md", "README.md"):
+    for name in (
+        "mocap.md",
+        "mocap.csv",
+        "missing.md",
+        "missing_curve.png",
+        "missing_tracks.md",
+        "README.md",
+    ):
         assert (out / name).is_file(), name
     text = (out / "mocap.md").read_text()
     assert "| synthetic-1 | 2 | organic |" in text
     n_cache = len(list((out / "cache").glob("*.json")))
-    rc = main(["benchmark", "--out", str(out), "--sequences", "synthetic-1", "--quick",
-               "--only", "mocap", "missing", "--quiet"])
+    rc = main(
+        [
+            "benchmark",
+            "--out",
+            str(out),
+            "--sequences",
+            "synthetic-1",
+            "--quick",
+            "--only",
+            "mocap",
+            "missing",
+            "--quiet",
+        ]
+    )
     assert len(list((out / "cache").glob("*.json"))) == n_cache
     assert f"({n_cache} from the cache)" in (out / "README.md").read_text()
 
@@ -256,7 +342,13 @@ def test_benchmark_sequences_leave_out_tasks_without_one():
     from nrsfm.experiments.plan import build_plan, unique_tasks
     from nrsfm.experiments.runner import sequences_of
 
-    tasks = unique_tasks(build_plan(only=["pseudo_inverse", "shape"], quick=True,
-                                    data="/nonexistent", external="/nonexistent"))
+    tasks = unique_tasks(
+        build_plan(
+            only=["pseudo_inverse", "shape"],
+            quick=True,
+            data="/nonexistent",
+            external="/nonexistent",
+        )
+    )
     assert any("sequence" not in t.params for t in tasks)
     assert sequences_of(tasks) == list(dt.MOCAP_NAMES)

@@ -48,17 +48,17 @@ def test_check_output_path(tmp_path):
         check_output_path(tmp_path)
     with pytest.raises(FileNotFoundError, match="does not exist"):
         check_output_path(tmp_path / "no" / "a.npz")
-    if os.path.isdir("/sys"):                  # read-only even for root (Linux)
+    if os.path.isdir("/sys"):  # read-only even for root (Linux)
         with pytest.raises(PermissionError, match="not writable"):
             check_output_path("/sys/a.npz")
-    assert os.listdir(tmp_path) == []          # the probe leaves nothing behind
+    assert os.listdir(tmp_path) == []  # the probe leaves nothing behind
 
 
 def test_write_text_is_atomic(tmp_path):
     target = tmp_path / "t.json"
     assert write_text(target, "{}") == target and target.read_text() == "{}"
     with pytest.raises(TypeError):
-        write_text(target, None)                 # fails while writing: old file kept
+        write_text(target, None)  # fails while writing: old file kept
     assert target.read_text() == "{}"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
 
@@ -73,25 +73,35 @@ def test_load_npz_reads_the_arrays(tmp_path):
 def _unreadable(tmp_path):
     """name -> (file, fragment of the message)."""
     good = save_npz(tmp_path / "good.npz", compressed=False, W=np.zeros((40, 30)))
-    files = {"text": b"W = 1, 2, 3\n", "empty": b"", "pickle": pickle.dumps({"W": [1]}),
-             "binary": bytes(range(255, 0, -1)), "truncated": good.read_bytes()[:300]}
+    files = {
+        "text": b"W = 1, 2, 3\n",
+        "empty": b"",
+        "pickle": pickle.dumps({"W": [1]}),
+        "binary": bytes(range(255, 0, -1)),
+        "truncated": good.read_bytes()[:300],
+    }
     for name, raw in files.items():
         (tmp_path / f"{name}.npz").write_bytes(raw)
     np.save(tmp_path / "one.npy", np.zeros(3))
     np.savez(tmp_path / "object.npz", W=np.array([1, "a", None], dtype=object))
     with zipfile.ZipFile(tmp_path / "zip.npz", "w") as z:
         z.writestr("W.txt", "1 2 3")
-    out = {"text": "it is a text file (it starts with 'W = 1, 2, 3')",
-           "empty": "is empty", "pickle": "it is a Python pickle (never loaded)",
-           "binary": "a binary file of an unknown kind", "truncated": "corrupt .npz archive",
-           "one.npy": "it is a .npy file (one array)", "object": "is an object array",
-           "zip": "member 'W.txt' is not a NumPy array"}
-    return {k: (tmp_path / (k if k.endswith(".npy") else f"{k}.npz"), v)
-            for k, v in out.items()}
+    out = {
+        "text": "it is a text file (it starts with 'W = 1, 2, 3')",
+        "empty": "is empty",
+        "pickle": "it is a Python pickle (never loaded)",
+        "binary": "a binary file of an unknown kind",
+        "truncated": "corrupt .npz archive",
+        "one.npy": "it is a .npy file (one array)",
+        "object": "is an object array",
+        "zip": "member 'W.txt' is not a NumPy array",
+    }
+    return {k: (tmp_path / (k if k.endswith(".npy") else f"{k}.npz"), v) for k, v in out.items()}
 
 
-@pytest.mark.parametrize("case", ["text", "empty", "pickle", "binary", "truncated",
-                                  "one.npy", "object", "zip"])
+@pytest.mark.parametrize(
+    "case", ["text", "empty", "pickle", "binary", "truncated", "one.npy", "object", "zip"]
+)
 def test_load_npz_unreadable_files_plain_messages(tmp_path, case):
     """A plain one-line ValueError naming the file; never numpy's advice to unpickle."""
     path, fragment = _unreadable(tmp_path)[case]

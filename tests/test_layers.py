@@ -3,8 +3,6 @@
 is no import circle between modules."""
 
 import ast
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,8 +12,20 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the layers, lowest first (docs/architecture.md); a module belongs to the first prefix
 #: that names it
 LAYERS = [
-    ("shared", ["nrsfm.geometry", "nrsfm.linalg", "nrsfm.validation", "nrsfm.io", "nrsfm.paths",
-                "nrsfm.published", "nrsfm.sequence", "nrsfm.noise", "nrsfm.warnings_catalog"]),
+    (
+        "shared",
+        [
+            "nrsfm.geometry",
+            "nrsfm.linalg",
+            "nrsfm.validation",
+            "nrsfm.io",
+            "nrsfm.paths",
+            "nrsfm.published",
+            "nrsfm.sequence",
+            "nrsfm.noise",
+            "nrsfm.warnings_catalog",
+        ],
+    ),
     ("stages", ["nrsfm.stages"]),
     ("metrics", ["nrsfm.metrics"]),
     ("diagnostics", ["nrsfm.diagnostics"]),
@@ -48,7 +58,7 @@ def _imports(name, path, known):
         elif isinstance(node, ast.ImportFrom):
             base = package.split(".")
             if node.level:
-                base = base[:len(base) - node.level + 1]
+                base = base[: len(base) - node.level + 1]
                 mod = ".".join(base + ([node.module] if node.module else []))
             else:
                 mod = node.module or ""
@@ -77,8 +87,12 @@ def graph():
 
 
 def test_every_import_points_to_its_layer_or_below(graph):
-    up = [f"{a} ({LAYERS[_layer(a)][0]}) -> {b} ({LAYERS[_layer(b)][0]})"
-          for a, deps in graph.items() for b in deps if _layer(b) > _layer(a)]
+    up = [
+        f"{a} ({LAYERS[_layer(a)][0]}) -> {b} ({LAYERS[_layer(b)][0]})"
+        for a, deps in graph.items()
+        for b in deps
+        if _layer(b) > _layer(a)
+    ]
     assert not up, "imports that point up a layer:\n" + "\n".join(sorted(up))
 
 
@@ -91,7 +105,7 @@ def test_no_import_circle(graph):
         state[n] = "open"
         for m in sorted(edges.get(n, ())):
             if state.get(m) == "open":
-                circles.append(" -> ".join(path[path.index(m):] + [m]))
+                circles.append(" -> ".join(path[path.index(m) :] + [m]))
             elif m not in state:
                 visit(m, path + [m])
         state[n] = "done"

@@ -122,7 +122,7 @@ def test_missing_mocap_file_names_the_folders_searched(monkeypatch, tmp_path):
     assert f"looked in {folder} and {folder.parent};" in msg
     assert "the folder that holds mocap/ (or mocap/ itself)" in msg and "NRSFM_DATA" in msg
     with pytest.raises(FileNotFoundError, match=f"looked in {folder};"):
-        dt.load_mocap("drink", folder)          # mocap/ itself: not mocap/mocap
+        dt.load_mocap("drink", folder)  # mocap/ itself: not mocap/mocap
     with pytest.raises(FileNotFoundError, match="no such folder.*no such folder"):
         dt.load_mocap("drink", tmp_path / "nowhere")
 
@@ -130,7 +130,7 @@ def test_missing_mocap_file_names_the_folders_searched(monkeypatch, tmp_path):
 def test_missing_mocap_file_points_at_the_folder_one_level_down(tmp_path):
     """Given the grandparent of mocap/ (the folder above the data folder), name the folder
     to use."""
-    folder = _shark_folder(tmp_path / "data")
+    _shark_folder(tmp_path / "data")
     with pytest.raises(FileNotFoundError) as info:
         dt.load_mocap("shark", tmp_path)
     assert str(info.value).endswith(f"{tmp_path / 'data'} holds it: use that folder")

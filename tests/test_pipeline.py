@@ -27,9 +27,10 @@ def test_methods_recover_noise_free_sequence(seq, method):
 
 def test_partial_sum_beats_penalising_all_singular_values(seq):
     """The paper's ADMM: the partial sum (N = 1) beats weighting every singular value."""
-    err = {m: e3d(nrsfm.reconstruct(seq.W, seq.K, method=m, shape_solver="admm").shapes,
-                  seq.shapes)
-           for m in ("organic", "wnn", "bmm")}
+    err = {
+        m: e3d(nrsfm.reconstruct(seq.W, seq.K, method=m, shape_solver="admm").shapes, seq.shapes)
+        for m in ("organic", "wnn", "bmm")
+    }
     assert err["organic"] < err["wnn"] and err["organic"] < err["bmm"]
 
 

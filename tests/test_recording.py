@@ -13,8 +13,7 @@ import data_tools  # noqa: E402
 import nrsfm  # noqa: E402
 from nrsfm.geometry import align_similarity as similarity_align  # noqa: E402
 from nrsfm.metrics import camera_alignment  # noqa: E402
-from nrsfm.views import (build_recording, recording_content,  # noqa: E402
-                             save_recording)
+from nrsfm.views import build_recording, recording_content, save_recording  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -38,13 +37,24 @@ def _stand_in_stages(result, seq, n_iter=9, seed=0):
     kept = rng.random((K, F)) > 0.3
     kept[0] = True
     rotation_stage = SimpleNamespace(
-        rotations=seq.rotations, registered=registered, per_triplet=registered,
-        coefficients=rng.standard_normal((K, F)), kept=kept, averaged=seq.rotations)
+        rotations=seq.rotations,
+        registered=registered,
+        per_triplet=registered,
+        coefficients=rng.standard_normal((K, F)),
+        kept=kept,
+        averaged=seq.rotations,
+    )
     history = {k: rng.random(n_iter) + 0.1 for k in ("cost", "data_term", "residual", "rho")}
     shape_stage = SimpleNamespace(
-        shapes=result.shapes / result.scale, X_init=result.X_init / result.scale,
-        X_init_singular_values=np.linspace(3, 0.1, F), theta=np.linspace(0.01, 1, F),
-        history=history, n_iter=n_iter, converged=True, solver="admm")
+        shapes=result.shapes / result.scale,
+        X_init=result.X_init / result.scale,
+        X_init_singular_values=np.linspace(3, 0.1, F),
+        theta=np.linspace(0.01, 1, F),
+        history=history,
+        n_iter=n_iter,
+        converged=True,
+        solver="admm",
+    )
     return dataclasses.replace(result, rotation_stage=rotation_stage, shape_stage=shape_stage)
 
 
@@ -79,33 +89,49 @@ def test_pseudo_inverse_recording(tmp_path, seq, pinv_result):
     assert len(reader.blueprints()) == 1
     data = read_rrd(path)
     F, P = seq.n_frames, seq.n_points
-    for p in ("/world/shapes/estimate", "/world/shapes/ground_truth", "/world/cameras/estimate",
-              "/world/cameras/ground_truth", "/image/measured", "/image/reprojected",
-              "/errors/e3d", "/errors/e_R"):
+    for p in (
+        "/world/shapes/estimate",
+        "/world/shapes/ground_truth",
+        "/world/cameras/estimate",
+        "/world/cameras/ground_truth",
+        "/image/measured",
+        "/image/reprojected",
+        "/errors/e3d",
+        "/errors/e_R",
+    ):
         rows = sum(b.num_rows for b in data[p]["temporal"])
         assert rows == F, p
         assert all("frame" in b.schema.names for b in data[p]["temporal"])
-    for p in ("/singular_values/W", "/singular_values/X_init", "/run/report",
-              "/world/trajectory/estimate", "/world/trajectory/ground_truth"):
+    for p in (
+        "/singular_values/W",
+        "/singular_values/X_init",
+        "/run/report",
+        "/world/trajectory/estimate",
+        "/world/trajectory/ground_truth",
+    ):
         assert data[p]["static"] and not data[p]["temporal"], p
     # no stages ran: nothing of theirs is logged
     assert not any(p.startswith(("/admm", "/rotations", "/rotation_samples")) for p in data)
 
     # values: ground truth in its world frame, estimate similarity-aligned onto it
-    gt, frames = column(data["/world/shapes/ground_truth"]["temporal"], "Points3D:positions",
-                        "frame")
+    gt, frames = column(
+        data["/world/shapes/ground_truth"]["temporal"], "Points3D:positions", "frame"
+    )
     assert np.array_equal(frames, np.arange(F))
     gt = np.asarray(gt)
     world = seq.world_shapes - seq.world_shapes.mean(axis=2, keepdims=True)
     np.testing.assert_allclose(gt, world.transpose(0, 2, 1), atol=1e-5)
-    est = np.asarray(column(data["/world/shapes/estimate"]["temporal"], "Points3D:positions",
-                            "frame")[0])
-    np.testing.assert_allclose(est, similarity_align(pinv_result.shapes, world)
-                               .transpose(0, 2, 1), atol=1e-5)
+    est = np.asarray(
+        column(data["/world/shapes/estimate"]["temporal"], "Points3D:positions", "frame")[0]
+    )
+    np.testing.assert_allclose(
+        est, similarity_align(pinv_result.shapes, world).transpose(0, 2, 1), atol=1e-5
+    )
     assert est.shape == (F, P, 3)
     e3d = np.asarray(column(data["/errors/e3d"]["temporal"], "Scalars:scalars", "frame")[0])
-    np.testing.assert_allclose(e3d.ravel(), nrsfm.e3d(pinv_result.shapes, seq.shapes,
-                                                      per_frame=True), rtol=1e-12)
+    np.testing.assert_allclose(
+        e3d.ravel(), nrsfm.e3d(pinv_result.shapes, seq.shapes, per_frame=True), rtol=1e-12
+    )
     sv = column(data["/singular_values/W"]["static"], "BarChart:values")
     assert sv  # tensor data, checked in content test below
     text = column(data["/run/report"]["static"], "TextDocument:text")[0][0]
@@ -121,7 +147,7 @@ def test_stage_recording(tmp_path, seq, pinv_result):
     for key in ("cost", "data_term", "residual", "rho"):
         vals, it = column(data[f"/admm/{key}"]["temporal"], "Scalars:scalars", "admm_iteration")
         assert np.array_equal(it, np.arange(len(hist[key])))
-        assert np.array_equal(np.ravel(vals), hist[key])          # float64, exact
+        assert np.array_equal(np.ravel(vals), hist[key])  # float64, exact
     # the same history as static bar charts (visible on any timeline), log10 where it spans
     # decades; nothing of it only on the admm_iteration timeline in the default views
     for key in ("cost", "data_term", "residual", "rho"):
@@ -132,15 +158,20 @@ def test_stage_recording(tmp_path, seq, pinv_result):
         np.testing.assert_allclose(vals, expect, rtol=1e-6)
     n_kept = column(data["/rotation_samples/n_kept"]["temporal"], "Scalars:scalars", "frame")[0]
     np.testing.assert_array_equal(np.ravel(n_kept), result.rotation_stage.kept.sum(axis=0))
-    theta = np.asarray(column(data["/singular_values/log10_theta"]["static"],
-                              "BarChart:values")[0][0]["buffer"])
+    theta = np.asarray(
+        column(data["/singular_values/log10_theta"]["static"], "BarChart:values")[0][0]["buffer"]
+    )
     np.testing.assert_allclose(theta, np.log10(result.shape_stage.theta), rtol=1e-6)
     for k in range(1, K + 1):
-        kept = column(data[f"/rotation_samples/kept/triplet_{k}"]["temporal"],
-                      "Scalars:scalars", "frame")[0]
+        kept = column(
+            data[f"/rotation_samples/kept/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
+        )[0]
         assert np.array_equal(np.ravel(kept), result.rotation_stage.kept[k - 1].astype(float))
-        coeff = column(data[f"/rotation_samples/coefficient/triplet_{k}"]["temporal"],
-                       "Scalars:scalars", "frame")[0]
+        coeff = column(
+            data[f"/rotation_samples/coefficient/triplet_{k}"]["temporal"],
+            "Scalars:scalars",
+            "frame",
+        )[0]
         assert np.array_equal(np.ravel(coeff), result.rotation_stage.coefficients[k - 1])
         arrows = data[f"/rotations/triplet_{k}"]["temporal"]
         assert sum(b.num_rows for b in arrows) == F
@@ -162,8 +193,7 @@ def test_content_values(seq, pinv_result):
     result = _stand_in_stages(pinv_result, seq)
     c = recording_content(result, seq)
     assert np.array_equal(c.singular_values["W"], result.factorization.singular_values)
-    assert np.array_equal(c.singular_values["X_init"],
-                          result.shape_stage.X_init_singular_values)
+    assert np.array_equal(c.singular_values["X_init"], result.shape_stage.X_init_singular_values)
     assert np.array_equal(c.singular_values["theta"], result.shape_stage.theta)
     # cameras align exactly when the estimate is the ground truth up to a global rotation
     np.testing.assert_allclose(c.cameras_est, seq.rotations, atol=1e-10)
@@ -174,14 +204,16 @@ def test_content_values(seq, pinv_result):
     assert c0.triplet_rotations is None and not c0.errors_per_frame
     # the pseudo-inverse shape stage reports its X_init's singular values (the solver's
     # units): those of X_init / scale, to rounding (the trailing ones are ~1e-16 s_1)
-    sv = np.linalg.svd((pinv_result.X_init / pinv_result.scale).reshape(seq.n_frames, -1),
-                       compute_uv=False)
+    sv = np.linalg.svd(
+        (pinv_result.X_init / pinv_result.scale).reshape(seq.n_frames, -1), compute_uv=False
+    )
     np.testing.assert_allclose(c0.singular_values["X_init"], sv, rtol=1e-7, atol=1e-12 * sv[0])
 
 
 def test_no_ground_truth_and_skeleton(tmp_path, seq, pinv_result):
-    seq_e = dataclasses.replace(seq, rotations=None, world_shapes=None,
-                                edges=np.array([[0, 1], [1, 2], [2, 3]]))
+    seq_e = dataclasses.replace(
+        seq, rotations=None, world_shapes=None, edges=np.array([[0, 1], [1, 2], [2, 3]])
+    )
     path = save_recording(pinv_result, tmp_path / "nogt.rrd", seq_e)
     data = read_rrd(path)
     assert "/world/cameras/ground_truth" not in data and "/errors/e_R" not in data
@@ -213,8 +245,9 @@ def test_frame_mismatch_raises(seq, pinv_result):
 
 def test_real_shape_stage(tmp_path, seq):
     """Rotations given: the real ADMM shape stage's history ends up on its timeline."""
-    res = nrsfm.reconstruct(seq.W, seq.K, method="organic", rotations=seq.rotations,
-                            shape_solver="admm")
+    res = nrsfm.reconstruct(
+        seq.W, seq.K, method="organic", rotations=seq.rotations, shape_solver="admm"
+    )
     assert res.rotation_stage is None and res.shape_stage is not None
     data = read_rrd(save_recording(res, tmp_path / "shape.rrd", seq))
     for key in ("cost", "data_term", "residual", "rho"):
@@ -241,15 +274,18 @@ def test_real_stages_recording(tmp_path, seq):
     assert K == seq.K
     for k in range(1, K + 1):
         assert sum(b.num_rows for b in data[f"/rotations/triplet_{k}"]["temporal"]) == F
-        kept = column(data[f"/rotation_samples/kept/triplet_{k}"]["temporal"],
-                      "Scalars:scalars", "frame")[0]
+        kept = column(
+            data[f"/rotation_samples/kept/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
+        )[0]
         assert np.array_equal(np.ravel(kept), np.asarray(stage.kept)[k - 1].astype(float))
-        dist = column(data[f"/rotation_samples/distance/triplet_{k}"]["temporal"],
-                      "Scalars:scalars", "frame")[0]
+        dist = column(
+            data[f"/rotation_samples/distance/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
+        )[0]
         expect = np.linalg.norm(stage.registered[k - 1] - stage.averaged, axis=(1, 2))
         np.testing.assert_allclose(np.ravel(dist), expect, atol=1e-9)
-    flips = column(data["/rotation_samples/sign_from_smoothness"]["temporal"],
-                   "Scalars:scalars", "frame")[0]
+    flips = column(
+        data["/rotation_samples/sign_from_smoothness"]["temporal"], "Scalars:scalars", "frame"
+    )[0]
     assert np.array_equal(np.ravel(flips), np.asarray(stage.sign_from_smoothness, float))
 
 
@@ -264,8 +300,9 @@ def test_notebooks_match_their_sources():
     script = root / "notebooks" / "build_notebooks.py"
     if not script.is_file():
         pytest.skip("no notebooks in this checkout")
-    out = subprocess.run([sys.executable, str(script), "--check"], capture_output=True,
-                         text=True, cwd=root)
+    out = subprocess.run(
+        [sys.executable, str(script), "--check"], capture_output=True, text=True, cwd=root
+    )
     assert out.returncode == 0, out.stdout + out.stderr
 
 
@@ -286,10 +323,15 @@ def test_committed_notebooks_have_no_outputs():
         cells = json.loads(nb.read_text())["cells"]
         code = [c for c in cells if c["cell_type"] == "code"]
         assert code, f"{nb.name} has no code cell"
-        not_stripped += [f"{nb.name} cell {c.get('id', i)}" for i, c in enumerate(code)
-                         if c.get("outputs") or c.get("execution_count") is not None]
-    assert not not_stripped, ("committed notebooks with outputs (regenerate them: python "
-                              f"notebooks/build_notebooks.py): {not_stripped}")
+        not_stripped += [
+            f"{nb.name} cell {c.get('id', i)}"
+            for i, c in enumerate(code)
+            if c.get("outputs") or c.get("execution_count") is not None
+        ]
+    assert not not_stripped, (
+        "committed notebooks with outputs (regenerate them: python "
+        f"notebooks/build_notebooks.py): {not_stripped}"
+    )
 
 
 def test_render_figures_script(tmp_path):
@@ -300,12 +342,20 @@ def test_render_figures_script(tmp_path):
 
     pytest.importorskip("matplotlib")
     script = Path(__file__).resolve().parents[1] / "tools" / "render_figures.py"
-    out = subprocess.run([sys.executable, str(script), "--out", str(tmp_path), "--no-mocap"],
-                         capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, str(script), "--out", str(tmp_path), "--no-mocap"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr
     names = sorted(p.name for p in tmp_path.glob("*.png"))
-    assert names == ["synthetic_admm.png", "synthetic_cameras.png", "synthetic_shapes.png",
-                     "synthetic_singular_values.png"]
+    assert names == [
+        "synthetic_admm.png",
+        "synthetic_cameras.png",
+        "synthetic_shapes.png",
+        "synthetic_singular_values.png",
+    ]
     assert all((tmp_path / n).stat().st_size > 10_000 for n in names)
 
 
@@ -336,8 +386,11 @@ def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result,
         prefixes = [c.rstrip("/*") for c in contents if not c.startswith("$")] or [origin]
         shown = [p for p in data if any(p == q or p.startswith(q + "/") for q in prefixes)]
         assert shown, f"view {v.name!r} ({origin}) has no entity"
-        visible = [p for p in shown if data[p]["static"] or any(
-            "frame" in b.schema.names for b in data[p]["temporal"])]
+        visible = [
+            p
+            for p in shown
+            if data[p]["static"] or any("frame" in b.schema.names for b in data[p]["temporal"])
+        ]
         assert visible, f"view {v.name!r} shows nothing on the frame timeline"
 
 
@@ -386,8 +439,10 @@ def test_rendered_notebooks_in_sync():
             assert (page.parent / img).is_file(), (page.name, img)
         if "plt.show()" in src.read_text():
             assert images, f"{page.name} has no figure"
-    assert not stale, ("rendered notebooks out of date (run python notebooks/build_notebooks.py "
-                       f"--render): {stale}")
+    assert not stale, (
+        "rendered notebooks out of date (run python notebooks/build_notebooks.py "
+        f"--render): {stale}"
+    )
 
 
 def test_rrd_screenshot_script_errors(tmp_path):
@@ -397,8 +452,12 @@ def test_rrd_screenshot_script_errors(tmp_path):
     from pathlib import Path
 
     script = Path(__file__).resolve().parents[1] / "tools" / "rrd_screenshot.py"
-    out = subprocess.run([sys.executable, str(script), str(tmp_path / "none.rrd"),
-                          str(tmp_path / "x.png")], capture_output=True, text=True, timeout=60)
+    out = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "none.rrd"), str(tmp_path / "x.png")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert out.returncode != 0
     assert "no such recording" in out.stderr and "Traceback" not in out.stderr
     assert not (tmp_path / "x.png").exists()
@@ -422,13 +481,15 @@ def test_missing_data_draws_the_filled_points_by_their_reliability(tmp_path):
     filled = read_rrd(path)["/world/shapes/filled"]
     positions, frames = column(filled["temporal"], "Points3D:positions", "frame")
     assert [len(p) for p in positions] == list((~obs).sum(axis=1))
-    colours = fill_colors(np.array([1.0, MAX_GAIN, MAX_GAIN ** 2, np.inf]))
+    colours = fill_colors(np.array([1.0, MAX_GAIN, MAX_GAIN**2, np.inf]))
     assert colours[0, 1] == 230 and colours[2, 1] == 0 and colours[3, 1] == 0
     assert colours[0, 1] > colours[1, 1] > colours[2, 1]
-    by_spread = fill_colors(np.array([MAX_GAIN ** 2, MAX_GAIN ** 2, 1.0, 1.0]),
-                            np.array([0.0, SPREAD_MAX, 2 * SPREAD_MAX, np.nan]))
+    by_spread = fill_colors(
+        np.array([MAX_GAIN**2, MAX_GAIN**2, 1.0, 1.0]),
+        np.array([0.0, SPREAD_MAX, 2 * SPREAD_MAX, np.nan]),
+    )
     assert by_spread[0, 1] == 230 and by_spread[2, 1] == 0 and by_spread[3, 1] == 230
-    assert by_spread[1, 1] == colours[1, 1]          # orange at either threshold
+    assert by_spread[1, 1] == colours[1, 1]  # orange at either threshold
     np.testing.assert_array_equal(c.fill_spread, res.fill_spread)
     complete = recording_content(nrsfm.reconstruct(seq.W, 2), seq)
     assert complete.filled is None

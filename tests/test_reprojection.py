@@ -128,9 +128,11 @@ def test_validation_set_rows_do_not_depend_on_order(seq):
     same_path = dt.validation_set([("s", "random", 0.0), ("s", "random", 0.05)], load, seed=1)
     assert np.array_equal(same_path[0].rotations, same_path[1].rotations)
     assert not np.allclose(same_path[0].W, same_path[1].W)
-    assert [s.name for s in first] == ["synthetic-smooth/fast40/noise0",
-                                      "synthetic-smooth/smooth62/noise0.02",
-                                      "synthetic-smooth/random/noise0.01"]
+    assert [s.name for s in first] == [
+        "synthetic-smooth/fast40/noise0",
+        "synthetic-smooth/smooth62/noise0.02",
+        "synthetic-smooth/random/noise0.01",
+    ]
 
 
 def test_bad_inputs(seq):
@@ -161,10 +163,14 @@ def test_load_external_struct_format(tmp_path):
     X_nan[2, 1, 4] = np.nan  # point 4 missing in frame 2: dropped everywhere
     folder = tmp_path / "hulk"
     folder.mkdir()
-    scipy.io.savemat(folder / "data_hulk.mat", {
-        "Pgth": _struct_array("P", list(X_nan)),
-        "p": _struct_array("p", [x[:2] / x[2] for x in X]),
-        "v": np.ones((F, P))})
+    scipy.io.savemat(
+        folder / "data_hulk.mat",
+        {
+            "Pgth": _struct_array("P", list(X_nan)),
+            "p": _struct_array("p", [x[:2] / x[2] for x in X]),
+            "v": np.ones((F, P)),
+        },
+    )
     s = load_external("hulk", tmp_path)
     keep = np.arange(P) != 4
     Xc = X[:, :, keep] - X[:, :, keep].mean(axis=2, keepdims=True)

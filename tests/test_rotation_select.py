@@ -43,7 +43,7 @@ def _run(W, K):
 def test_subspace_reproduces_the_motion_factor():
     rng = np.random.default_rng(0)
     M = np.hstack([rng.standard_normal((40, 5)), np.zeros((40, 4))])
-    M[:, 5:] = 1e-12 * rng.standard_normal((40, 4))           # rounding-level columns
+    M[:, 5:] = 1e-12 * rng.standard_normal((40, 4))  # rounding-level columns
     sub = determined_subspace(M)
     assert sub.rank == 5 and sub.deficient and sub.M.shape == (40, 5)
     G_r = rng.standard_normal((5, 3))
@@ -69,7 +69,7 @@ def test_rigid_plus_planar_exact_in_any_units(K, units):
     d = res.diagnostics
     assert d.signals["numerical_rank"] == 5 and not caught
     assert any(n.startswith("N-rank-deficient-subspace: W has only 5 ") for n in d.notes)
-    assert "  note: N-rank-deficient-subspace: " in res.summary()     # the summary shows it
+    assert "  note: N-rank-deficient-subspace: " in res.summary()  # the summary shows it
 
 
 @pytest.mark.parametrize("K_true,extra", [(1, 2), (2, 2), (3, 1)])
@@ -105,12 +105,13 @@ def test_shape_for_the_stage_rotations_in_one_solve(monkeypatch):
     seq = data_tools.make_synthetic(F=60, P=30, K=2, noise=0.02, seed=3)
     calls = []
     solve = bilinear.solve_bilinear
-    monkeypatch.setattr(bilinear, "solve_bilinear", lambda *a, **k: calls.append(1) or
-                        solve(*a, **k))
+    monkeypatch.setattr(
+        bilinear, "solve_bilinear", lambda *a, **k: calls.append(1) or solve(*a, **k)
+    )
     res = nrsfm.reconstruct(seq.W, 2)
     assert len(calls) == 1
     np.testing.assert_allclose(res.rotations, res.rotation_stage.rotations)
-    given = nrsfm.reconstruct(seq.W, 2, rotations=res.rotations)     # one answer for R
+    given = nrsfm.reconstruct(seq.W, 2, rotations=res.rotations)  # one answer for R
     np.testing.assert_allclose(given.shapes, res.shapes, atol=1e-9 * np.abs(res.shapes).max())
     amp = res.diagnostics.signals["depth_amplification"]
     assert amp == given.diagnostics.signals["depth_amplification"]

@@ -23,8 +23,7 @@ def _one_thread():
 
 
 def _seq(K, motion, noise=0.0, seed=0, F=40):
-    seq = data_tools.make_synthetic(F=F, P=3 * K + 15, K=K, motion=motion, noise=noise,
-                                    seed=seed)
+    seq = data_tools.make_synthetic(F=F, P=3 * K + 15, K=K, motion=motion, noise=noise, seed=seed)
     return seq, factorize(seq.W, K).M_hat
 
 
@@ -32,7 +31,7 @@ def _seq(K, motion, noise=0.0, seed=0, F=40):
 @pytest.mark.parametrize("K", [1, 2, 3, 4])
 def test_noise_free_rotations_exact(K, motion):
     seq, M = _seq(K, motion, seed=K)
-    for single in (False, True):                          # organic, bmm
+    for single in (False, True):  # organic, bmm
         res = RT.estimate_rotations(M, K, single=single, seed=0)
         assert res.rotations.shape == (40, 3, 3)
         assert res.n_triplets == (1 if single else K)
@@ -48,14 +47,18 @@ def test_random_motion_exact_up_to_depth_reversal():
     U, _, Vt = np.linalg.svd(np.einsum("fi,fj->ij", R[:, 2], Rgt[:, 2]))
     Q = U @ Vt
     A = R[:, :2] @ Q
-    err = np.minimum(np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)),
-                     np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2)))
+    err = np.minimum(
+        np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)), np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2))
+    )
     assert err.max() < 1e-6
     assert res.sign_from_smoothness.dtype == bool
     assert res.sign_from_smoothness.any()
     # with the reversal undone per frame, the sequence is exact
-    sign = np.where(np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)) <
-                    np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2)), 1.0, -1.0)
+    sign = np.where(
+        np.linalg.norm(Rgt[:, :2] - A, axis=(1, 2)) < np.linalg.norm(Rgt[:, :2] + A, axis=(1, 2)),
+        1.0,
+        -1.0,
+    )
     Rfix = np.where(sign[:, None, None] > 0, R, FLIP @ R)
     assert rotation_error(Rfix, Rgt) < 1e-6
 
@@ -65,14 +68,14 @@ def test_closed_form_lift_and_log_match_the_svd_and_scipy():
     u = rng.standard_normal((2, 200, 3))
     u /= np.linalg.norm(u, axis=2, keepdims=True)
     L = np.stack([u[0], u[1], np.cross(u[0], u[1])], axis=1)
-    np.testing.assert_allclose(RT.lifting._nearest_rotation(u[0], u[1]),
-                               GEO.project_to_so3(L), atol=1e-12)
+    np.testing.assert_allclose(
+        RT.lifting._nearest_rotation(u[0], u[1]), GEO.project_to_so3(L), atol=1e-12
+    )
     for angle in (1e-9, 1e-3, 1.0, 3.0, np.pi - 1e-6):
         v = rng.standard_normal((50, 3))
         v *= angle / np.linalg.norm(v, axis=1, keepdims=True)
         R = Rotation.from_rotvec(v).as_matrix()
-        np.testing.assert_allclose(GEO._log_so3(R), Rotation.from_matrix(R).as_rotvec(),
-                                   atol=1e-9)
+        np.testing.assert_allclose(GEO._log_so3(R), Rotation.from_matrix(R).as_rotvec(), atol=1e-9)
 
 
 def test_batched_projection_to_so3_matches_the_svd_on_hard_cases():
@@ -91,20 +94,27 @@ def test_batched_projection_to_so3_matches_the_svd_on_hard_cases():
     for name, A in cases.items():
         R = GEO.project_to_so3_batch(A)
         assert np.isfinite(R).all(), name
-        np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
-                                   atol=1e-13, err_msg=name)
+        np.testing.assert_allclose(
+            R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), atol=1e-13, err_msg=name
+        )
         np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-13, err_msg=name)
         # the SO(3) Procrustes objective trace(R' A) is the SVD's (the maximiser is unique
         # except on "equal singular values", where the objective still is)
         best = GEO.project_to_so3(A)
-        np.testing.assert_allclose(np.einsum("nij,nij->n", R, A),
-                                   np.einsum("nij,nij->n", best, A),
-                                   rtol=1e-12, atol=1e-300, err_msg=name)
+        np.testing.assert_allclose(
+            np.einsum("nij,nij->n", R, A),
+            np.einsum("nij,nij->n", best, A),
+            rtol=1e-12,
+            atol=1e-300,
+            err_msg=name,
+        )
         if name not in ("equal singular values", "mixed"):
             np.testing.assert_allclose(R, best, atol=1e-12, err_msg=name)
     # one answer per matrix, whatever else is in the batch
     A = np.concatenate(list(cases.values()))
-    parts = np.concatenate([GEO.project_to_so3_batch(A[i:i + 777]) for i in range(0, len(A), 777)])
+    parts = np.concatenate(
+        [GEO.project_to_so3_batch(A[i : i + 777]) for i in range(0, len(A), 777)]
+    )
     assert np.array_equal(GEO.project_to_so3_batch(A), parts)
 
 
@@ -116,7 +126,7 @@ def test_l1_average_robust_to_outliers():
     samples = (noise * Rotation.concatenate([truth] * m)).as_matrix().reshape(m, F, 3, 3)
     samples[:3] = Rotation.random(3 * F, random_state=2).as_matrix().reshape(3, F, 3, 3)
     l1 = GEO.average_rotations(samples)
-    l2 = GEO.project_to_so3(samples.mean(axis=0))            # the chordal L2 mean
+    l2 = GEO.project_to_so3(samples.mean(axis=0))  # the chordal L2 mean
     e1 = GEO.rotation_angle(l1, truth.as_matrix())
     e2 = GEO.rotation_angle(l2, truth.as_matrix())
     assert e1.mean() < 0.02
@@ -143,7 +153,7 @@ def test_registration_recovers_global_rotation(mirrored):
     flips = rng.random(F) < 0.3
     R_k = R_ref @ Rg
     R_k = np.where(flips[:, None, None], FLIP @ R_k, R_k)
-    if mirrored:                      # the lift of the mirrored 2 x 3 blocks
+    if mirrored:  # the lift of the mirrored 2 x 3 blocks
         R_k = MIRROR @ R_k @ MIRROR
     reg, R_reg, got_flips, got_mirror, cost = RT.register_rotations(R_ref, R_k)
     np.testing.assert_allclose(reg, R_ref, atol=1e-10)
@@ -159,8 +169,13 @@ def test_registration_recovers_global_rotation(mirrored):
 
 def test_filter_by_geodesic_angle():
     R = Rotation.random(5, random_state=6).as_matrix()
-    reg = np.stack([R, Rotation.from_rotvec([0, 0, 0.04]).as_matrix() @ R,
-                    Rotation.from_rotvec([0, 0.06, 0]).as_matrix() @ R])
+    reg = np.stack(
+        [
+            R,
+            Rotation.from_rotvec([0, 0, 0.04]).as_matrix() @ R,
+            Rotation.from_rotvec([0, 0.06, 0]).as_matrix() @ R,
+        ]
+    )
     kept, d = RT.filter_rotations(reg, R, 0.05)
     np.testing.assert_allclose(d[1:], [[0.04] * 5, [0.06] * 5], atol=1e-12)
     assert kept[:2].all() and not kept[2].any()
@@ -169,7 +184,7 @@ def test_filter_by_geodesic_angle():
 def test_no_nan_when_a_coefficient_is_zero():
     seq, M = _seq(2, "smooth", noise=0.01, seed=7)
     M = M.copy()
-    M[10:12] = 0.0                    # frame 5: M_f G = 0 for every triplet
+    M[10:12] = 0.0  # frame 5: M_f G = 0 for every triplet
     G = np.random.default_rng(0).standard_normal((3, 6, 3))
     G[1] = 0.0
     R, coef, valid = RT.rotations_from_triplets(M, G)
@@ -198,7 +213,7 @@ def test_deterministic_under_seed_and_result_fields():
     assert a.search.costs[0] == pytest.approx(a.triplet_costs[0])
     assert a.determined_rank == 9 and a.effective_K == 3
     assert {"registration", "filtering", "averaging"} <= set(a.timings)
-    assert rotation_error(a.rotations, seq.rotations) < 0.2   # 3% noise, K = 3: loose
+    assert rotation_error(a.rotations, seq.rotations) < 0.2  # 3% noise, K = 3: loose
 
 
 def test_settings_validation_names_the_value():
@@ -229,5 +244,6 @@ def test_batched_projection_near_ambiguous_reflections_to_the_conditioning():
 def test_batched_projection_without_iterations_falls_back_to_the_svd():
     # with max_iter = 0 no root I1 has converged: every matrix goes to the SVD
     A = np.random.default_rng(6).standard_normal((50, 3, 3))
-    np.testing.assert_allclose(GEO.project_to_so3_batch(A, max_iter=0), GEO.project_to_so3(A),
-                               atol=1e-13)
+    np.testing.assert_allclose(
+        GEO.project_to_so3_batch(A, max_iter=0), GEO.project_to_so3(A), atol=1e-13
+    )

@@ -9,8 +9,15 @@ import pytest
 
 import data_tools
 import nrsfm
-from nrsfm.settings import (KEYWORDS, METHODS, AdmmSettings, BilinearSettings,
-                            MeasurementSettings, RotationSettings, Settings)
+from nrsfm.settings import (
+    KEYWORDS,
+    METHODS,
+    AdmmSettings,
+    BilinearSettings,
+    MeasurementSettings,
+    RotationSettings,
+    Settings,
+)
 from nrsfm.stages.shape import SOLVERS, ShapeResult, solve_shape
 
 
@@ -42,8 +49,9 @@ def test_every_keyword_is_tested():
 
 @pytest.mark.parametrize("name,value,settings", _KEYWORD_FIELDS)
 def test_each_keyword_and_its_settings_field_give_the_same_run(seq, name, value, settings):
-    _same(nrsfm.reconstruct(seq.W, 2, **{name: value}),
-          nrsfm.reconstruct(seq.W, 2, settings=settings))
+    _same(
+        nrsfm.reconstruct(seq.W, 2, **{name: value}), nrsfm.reconstruct(seq.W, 2, settings=settings)
+    )
 
 
 def test_the_default_run_is_the_default_settings(seq):
@@ -59,8 +67,9 @@ def test_what_each_method_computes(seq):
         assert res.shape_stage.prior == (m.prior or "none")
 
 
-@pytest.mark.parametrize("names", [c for n in range(1, len(KEYWORDS) + 1)
-                                   for c in itertools.combinations(KEYWORDS, n)])
+@pytest.mark.parametrize(
+    "names", [c for n in range(1, len(KEYWORDS) + 1) for c in itertools.combinations(KEYWORDS, n)]
+)
 def test_keywords_beside_settings_are_refused(seq, names):
     """settings= beside any of the keywords, even at a default value, is a ValueError that
     names them (they would be ignored)."""
@@ -76,27 +85,31 @@ def test_settings_must_be_settings(seq):
         nrsfm.reconstruct(seq.W, 2, settings=dict(method="bmm"))
 
 
-@pytest.mark.parametrize("make,match", [
-    (lambda: RotationSettings(delta=-1.0), "delta"),
-    (lambda: RotationSettings(hits=1.5), "hits"),
-    (lambda: AdmmSettings(lam=1.0), "lam"),
-    (lambda: BilinearSettings(max_iter=-1), "max_iter"),
-    (lambda: MeasurementSettings(completion="svd"), "completion"),
-    (lambda: Settings(method="bogus"), "method"),
-    (lambda: Settings(rotation="organic"), "rotation must be a RotationSettings"),
-    (lambda: Settings(shape="admm"), "shape must be a BilinearSettings or an AdmmSettings"),
-    (lambda: Settings(method="pseudo_inverse", shape=BilinearSettings()), "no shape solver"),
-    (lambda: Settings(method="bmm", rotation=RotationSettings(delta=0.1)), "delta"),
-    (lambda: Settings.from_keywords(shape_solver="closed_form"), "shape_solver"),
-])
+@pytest.mark.parametrize(
+    "make,match",
+    [
+        (lambda: RotationSettings(delta=-1.0), "delta"),
+        (lambda: RotationSettings(hits=1.5), "hits"),
+        (lambda: AdmmSettings(lam=1.0), "lam"),
+        (lambda: BilinearSettings(max_iter=-1), "max_iter"),
+        (lambda: MeasurementSettings(completion="svd"), "completion"),
+        (lambda: Settings(method="bogus"), "method"),
+        (lambda: Settings(rotation="organic"), "rotation must be a RotationSettings"),
+        (lambda: Settings(shape="admm"), "shape must be a BilinearSettings or an AdmmSettings"),
+        (lambda: Settings(method="pseudo_inverse", shape=BilinearSettings()), "no shape solver"),
+        (lambda: Settings(method="bmm", rotation=RotationSettings(delta=0.1)), "delta"),
+        (lambda: Settings.from_keywords(shape_solver="closed_form"), "shape_solver"),
+    ],
+)
 def test_bad_values_are_refused_when_built(make, match):
     with pytest.raises(ValueError, match=match):
         make()
 
 
 def test_bmm_takes_the_search_settings():
-    assert Settings(method="bmm", rotation=RotationSettings(max_starts=10)).rotation.max_starts \
-        == 10
+    assert (
+        Settings(method="bmm", rotation=RotationSettings(max_starts=10)).rotation.max_starts == 10
+    )
 
 
 def test_settings_are_frozen():
@@ -105,8 +118,11 @@ def test_settings_are_frozen():
 
 
 def test_stage_settings_reach_their_stage(seq):
-    s = Settings(method="wnn", shape=AdmmSettings(N=2, mu=0.5),
-                 rotation=RotationSettings(max_starts=5, hits=3))
+    s = Settings(
+        method="wnn",
+        shape=AdmmSettings(N=2, mu=0.5),
+        rotation=RotationSettings(max_starts=5, hits=3),
+    )
     res = nrsfm.reconstruct(seq.W, 2, settings=s)
     assert res.settings is s and res.settings.shape_solver == "admm"
     assert res.shape_stage.N == 2 and res.shape_stage.params["mu"] == 0.5
@@ -116,8 +132,7 @@ def test_stage_settings_reach_their_stage(seq):
 
 def test_configuration_size():
     """The whole configuration: at most 35 fields over the settings classes."""
-    classes = (Settings, MeasurementSettings, RotationSettings, BilinearSettings,
-               AdmmSettings)
+    classes = (Settings, MeasurementSettings, RotationSettings, BilinearSettings, AdmmSettings)
     assert sum(len(dataclasses.fields(c)) for c in classes) <= 35
 
 

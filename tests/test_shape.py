@@ -8,11 +8,24 @@ import pytest
 import data_tools
 import nrsfm
 from nrsfm.metrics import e3d
-from nrsfm.stages.shape import (PRIORS, SOLVERS, BilinearSettings, ShapeResult, phi, phi_inv,
-                                pseudo_inverse_shapes, solve_shape, truncate_rank)
+from nrsfm.stages.shape import (
+    PRIORS,
+    SOLVERS,
+    BilinearSettings,
+    ShapeResult,
+    phi,
+    phi_inv,
+    pseudo_inverse_shapes,
+    truncate_rank,
+)
 from nrsfm.stages.shape.bilinear import solve_bilinear
-from nrsfm.stages.shape.admm import (AdmmSettings, admm_iterations, normalization_scale, psvt,
-                                     shape_weights)
+from nrsfm.stages.shape.admm import (
+    AdmmSettings,
+    admm_iterations,
+    normalization_scale,
+    psvt,
+    shape_weights,
+)
 
 
 def optimize_shapes(W, R, K, prior="organic", progress=None, **options):
@@ -43,16 +56,19 @@ def test_psvt_is_the_proximal_point(N):
     rng = np.random.default_rng(N)
     Q = rng.standard_normal((5, 4))
     s = np.linalg.svd(Q, compute_uv=False)
-    tau = np.full(4, 0.6 * s[N])                    # thresholds some, keeps others
+    tau = np.full(4, 0.6 * s[N])  # thresholds some, keeps others
     P = psvt(Q, N, tau)
     best = _partial_objective(P, Q, N, tau)
     for _ in range(300):
         E = rng.standard_normal(Q.shape) * rng.choice([1e-3, 1e-2, 1e-1])
         assert _partial_objective(P + E, Q, N, tau) >= best - 1e-12
     for start in (Q, np.zeros_like(Q), rng.standard_normal(Q.shape)):
-        res = minimize(lambda p: _partial_objective(p.reshape(Q.shape), Q, N, tau),
-                       start.ravel(), method="Powell", options=dict(xtol=1e-9, ftol=1e-12,
-                                                                    maxfev=8000))
+        res = minimize(
+            lambda p: _partial_objective(p.reshape(Q.shape), Q, N, tau),
+            start.ravel(),
+            method="Powell",
+            options=dict(xtol=1e-9, ftol=1e-12, maxfev=8000),
+        )
         assert res.fun >= best - 1e-7
 
 
@@ -73,12 +89,17 @@ def test_psvt_keeps_leading_and_soft_thresholds_rest():
     np.testing.assert_allclose(psvt(Q, 4, 10.0), Q, atol=1e-12)
 
 
-@pytest.mark.parametrize("kwargs", [dict(Q=np.ones(3), N=1, tau=0.1),
-                                    dict(Q=np.ones((3, 3)), N=-1, tau=0.1),
-                                    dict(Q=np.ones((3, 3)), N=1.5, tau=0.1),
-                                    dict(Q=np.ones((3, 3)), N=1, tau=-0.1),
-                                    dict(Q=np.ones((3, 3)), N=1, tau=[0.1, 0.2]),
-                                    dict(Q=np.full((3, 3), np.nan), N=1, tau=0.1)])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(Q=np.ones(3), N=1, tau=0.1),
+        dict(Q=np.ones((3, 3)), N=-1, tau=0.1),
+        dict(Q=np.ones((3, 3)), N=1.5, tau=0.1),
+        dict(Q=np.ones((3, 3)), N=1, tau=-0.1),
+        dict(Q=np.ones((3, 3)), N=1, tau=[0.1, 0.2]),
+        dict(Q=np.full((3, 3), np.nan), N=1, tau=0.1),
+    ],
+)
 def test_psvt_bad_input(kwargs):
     with pytest.raises(ValueError):
         psvt(**kwargs)
@@ -89,10 +110,15 @@ def test_shape_weights_eq9():
     theta = shape_weights(sigma)
     xi = 5e-3 * 2.0
     np.testing.assert_allclose(theta, xi / (sigma + 1e-6))
-    assert np.all(np.diff(theta) > 0)                   # smaller sigma, larger weight
+    assert np.all(np.diff(theta) > 0)  # smaller sigma, larger weight
     np.testing.assert_allclose(shape_weights(sigma, xi=1.0, gamma=0.5), 1.0 / (sigma + 0.5))
-    for bad in (dict(sigma=[]), dict(sigma=[1.0, -1.0]), dict(sigma=[1.0], gamma=0.0),
-                dict(sigma=[0.0, 0.0]), dict(sigma=[1.0], xi=-1.0)):
+    for bad in (
+        dict(sigma=[]),
+        dict(sigma=[1.0, -1.0]),
+        dict(sigma=[1.0], gamma=0.0),
+        dict(sigma=[0.0, 0.0]),
+        dict(sigma=[1.0], xi=-1.0),
+    ):
         with pytest.raises(ValueError):
             shape_weights(**bad)
 
@@ -104,8 +130,8 @@ def test_admm_converges_and_recovers_low_rank_shape(seq):
     assert isinstance(res, ShapeResult)
     assert res.converged and res.history["residual"][-1] < res.params["eps"]
     assert res.prior == "organic" and res.N == 1
-    assert e3d(res.X_init, seq.shapes) > 0.3            # the planar start is poor
-    assert e3d(res.shapes, seq.shapes) < 1e-3            # the low-rank shape is recovered
+    assert e3d(res.X_init, seq.shapes) > 0.3  # the planar start is poor
+    assert e3d(res.shapes, seq.shapes) < 1e-3  # the low-rank shape is recovered
     # the final shape reproduces the measurements
     proj = (seq.rotations[:, :2] @ res.shapes).reshape(W.shape)
     assert np.abs(proj - W).max() < 1e-3 * np.abs(W).max()
@@ -118,7 +144,7 @@ def test_x_step_matches_general_solve(seq):
     F, P = seq.shapes.shape[0], seq.shapes.shape[2]
     R = seq.rotations[:, :2]
     rho = 1e-4
-    Z = truncate_rank(res.X_init, seq.K)             # X# = P_K[X_init], Y = 0 at the start
+    Z = truncate_rank(res.X_init, seq.K)  # X# = P_K[X_init], Y = 0 at the start
     A = R.transpose(0, 2, 1) @ R + rho * np.eye(3)
     X = np.linalg.solve(A, R.transpose(0, 2, 1) @ W.reshape(F, 2, P) + rho * Z)
     data = 0.5 * np.sum((W.reshape(F, 2, P) - R @ X) ** 2)
@@ -137,8 +163,9 @@ def test_three_priors_run(seq, prior):
         assert np.all(res.theta == res.theta[0])
     else:
         np.testing.assert_allclose(
-            res.theta, shape_weights(res.X_init_singular_values, res.params["xi"],
-                                     res.params["gamma"]))
+            res.theta,
+            shape_weights(res.X_init_singular_values, res.params["xi"], res.params["gamma"]),
+        )
 
 
 def test_history_and_params(seq):
@@ -159,9 +186,9 @@ def test_partial_sum_leaves_leading_values(seq):
     W = seq.W / normalization_scale(seq.W)
     res = optimize_shapes(W, seq.rotations, seq.K, N=3 * seq.W.shape[1])
     assert res.history["cost"][-1] == pytest.approx(res.history["data_term"][-1])
-    assert res.history["data_term"][-1] < 1e-8 * 0.5 * np.sum(W ** 2)
+    assert res.history["data_term"][-1] < 1e-8 * 0.5 * np.sum(W**2)
     sv = np.linalg.svd(phi(res.shapes), compute_uv=False)
-    assert sv[seq.K] > 1e-3 * sv[0]                     # not of rank K: nothing penalised
+    assert sv[seq.K] > 1e-3 * sv[0]  # not of rank K: nothing penalised
 
 
 def test_max_iter_and_rho_max_stop(seq):
@@ -191,15 +218,25 @@ def test_existing_helpers(seq):
     assert np.linalg.matrix_rank(phi(truncate_rank(Xi, 2))) == 2
 
 
-@pytest.mark.parametrize("change", [
-    dict(W=np.ones((5, 10))),                             # odd number of rows
-    dict(W=np.full((6, 10), np.nan)),
-    dict(R=np.ones((3, 3, 3))),                           # not orthonormal
-    dict(R=np.broadcast_to(np.eye(3), (4, 3, 3))),        # wrong frame count
-    dict(R=np.ones((3, 4, 3))),
-    dict(K=0), dict(prior="bogus"), dict(N=-1), dict(mu=-1.0), dict(lam=1.0),
-    dict(rho0=0.0), dict(max_iter=0),
-    dict(gamma=0.0), dict(xi=-1.0)])
+@pytest.mark.parametrize(
+    "change",
+    [
+        dict(W=np.ones((5, 10))),  # odd number of rows
+        dict(W=np.full((6, 10), np.nan)),
+        dict(R=np.ones((3, 3, 3))),  # not orthonormal
+        dict(R=np.broadcast_to(np.eye(3), (4, 3, 3))),  # wrong frame count
+        dict(R=np.ones((3, 4, 3))),
+        dict(K=0),
+        dict(prior="bogus"),
+        dict(N=-1),
+        dict(mu=-1.0),
+        dict(lam=1.0),
+        dict(rho0=0.0),
+        dict(max_iter=0),
+        dict(gamma=0.0),
+        dict(xi=-1.0),
+    ],
+)
 def test_optimize_shapes_bad_input(change):
     rng = np.random.default_rng(0)
     args = dict(W=rng.standard_normal((6, 10)), R=np.broadcast_to(np.eye(3), (3, 3, 3)), K=1)
@@ -213,8 +250,8 @@ def test_optimize_shapes_bad_input(change):
 from nrsfm.noise import noise_level  # noqa: E402
 from nrsfm.stages.shape.bilinear import bilinear_weights  # noqa: E402
 from nrsfm.stages.shape.factors import objective as _objective  # noqa: E402
-from nrsfm.stages.shape.closed_form import (closed_form_coefficients,  # noqa: E402
-                                            closed_form_shapes)
+from nrsfm.stages.shape.closed_form import closed_form_coefficients  # noqa: E402
+from nrsfm.stages.shape.closed_form import closed_form_shapes  # noqa: E402
 
 
 @pytest.mark.parametrize("K", range(1, 9))
@@ -234,14 +271,14 @@ def test_closed_form_nullspace_has_dimension_k():
     seq = data_tools.make_synthetic(F=50, P=20, K=3, motion="smooth", seed=2)
     B, ev = closed_form_coefficients(seq.W, seq.rotations, 3)
     assert B.shape == (50, 3)
-    assert np.all(ev[:3] < 1e-12) and ev[3] > 1e-6        # K zero eigenvalues, then a gap
+    assert np.all(ev[:3] < 1e-12) and ev[3] > 1e-6  # K zero eigenvalues, then a gap
     # B spans the true coefficients' column space
     Bt = seq.extra["coefficients"]
     Q, _ = np.linalg.qr(B)
     assert np.linalg.norm(Bt - Q @ (Q.T @ Bt)) < 1e-8 * np.linalg.norm(Bt)
 
 
-@pytest.mark.parametrize("r", [2, 3])        # 3P = 21: factored form (r = 2), X# formed (3)
+@pytest.mark.parametrize("r", [2, 3])  # 3P = 21: factored form (r = 2), X# formed (3)
 def test_bilinear_gradient_matches_finite_differences(r):
     rng = np.random.default_rng(0)
     seq = data_tools.make_synthetic(F=8, P=7, K=2, motion="random", seed=4)
@@ -249,29 +286,30 @@ def test_bilinear_gradient_matches_finite_differences(r):
     Rf = seq.rotations[:, :2]
     Pi = Rf.transpose(0, 2, 1) @ Rf
     Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(F, 2, P)).reshape(F, 3 * P)
-    w2 = float(np.sum(seq.W ** 2))
+    w2 = float(np.sum(seq.W**2))
     reg = np.array([0.0, 0.3, 0.7])[:r]
     B, C = rng.standard_normal((F, r)), rng.standard_normal((3 * P, r))
     E, data, gB, gC = _objective(B, C, Pi, Xi, w2, reg)
     X = (B @ C.T).reshape(F, 3, P)
     assert data == pytest.approx(0.5 * np.sum((seq.W.reshape(F, 2, P) - Rf @ X) ** 2))
     h = 1e-6
-    for (M, g) in ((B, gB), (C, gC)):
+    for M, g in ((B, gB), (C, gC)):
         for idx in [(0, 0), (3, 1), (M.shape[0] - 1, 1)]:
             Mp, Mm = M.copy(), M.copy()
             Mp[idx] += h
             Mm[idx] -= h
             args = (Mp, C) if M is B else (B, Mp)
             argm = (Mm, C) if M is B else (B, Mm)
-            fd = (_objective(*args, Pi, Xi, w2, reg)[0]
-                  - _objective(*argm, Pi, Xi, w2, reg)[0]) / (2 * h)
+            fd = (_objective(*args, Pi, Xi, w2, reg)[0] - _objective(*argm, Pi, Xi, w2, reg)[0]) / (
+                2 * h
+            )
             assert fd == pytest.approx(g[idx], rel=1e-5, abs=1e-6)
 
 
 def test_bilinear_noisy_stationary_scale_free_and_wnn_identity():
     seq = data_tools.make_synthetic(F=50, P=20, K=3, motion="smooth", noise=0.05, seed=3)
     res = optimize_shapes_bilinear(seq.W, seq.rotations, 3)
-    assert res.converged and res.grad_norm <= 1e-8               # BilinearSettings().gtol
+    assert res.converged and res.grad_norm <= 1e-8  # BilinearSettings().gtol
     assert res.mu > 0 and res.noise > 0
     # at a balanced stationary point the factored regulariser is the weighted nuclear norm
     assert res.objective == pytest.approx(res.wnn_objective, rel=1e-5)
@@ -292,13 +330,17 @@ def test_bilinear_rank_from_W_and_the_prior():
     res = optimize_shapes_bilinear(W, low.rotations, 2)
     assert res.params["rank_rule"] == "W of rank <= 3K" and res.params["ranks"] == [2]
     high = data_tools.make_synthetic(F=60, P=20, K=6, motion="random", seed=3)
-    res = optimize_shapes_bilinear(high.W, high.rotations, 1)       # the prior keeps rank 3
+    res = optimize_shapes_bilinear(high.W, high.rotations, 1)  # the prior keeps rank 3
     assert res.params["rank_rule"] == "prior" and res.params["ranks"] == [3]
     assert res.params["rank_certificate"] <= 1 + CERTIFICATE_SLACK
     six = optimize_shapes_bilinear(high.W, high.rotations, 1, rank=6)
     np.testing.assert_allclose(six.shapes, res.shapes, atol=1e-6 * np.abs(res.shapes).max())
-    light = optimize_shapes_bilinear(high.W, high.rotations, 1,       # it wants rank 6
-                                     mu=1e-6 * np.linalg.norm(high.W))
+    light = optimize_shapes_bilinear(
+        high.W,
+        high.rotations,
+        1,  # it wants rank 6
+        mu=1e-6 * np.linalg.norm(high.W),
+    )
     assert light.params["ranks"] == [3, 6] and light.params["live_rank"] == 6
     # the history holds both fits: each one's start and its iterations
     assert len(light.history["cost"]) == light.n_iter + len(light.params["ranks"])
@@ -324,7 +366,7 @@ def test_bilinear_weight_follows_the_square_of_the_noise():
         for scale in (1.0, 1e3):
             res = optimize_shapes_bilinear(scale * W, seq.rotations, 3)
             flat = optimize_shapes_bilinear(scale * W, seq.rotations, 3, mu_noise=0.0)
-            shrink = (5.0 * res.noise ** 2 * (F + 2 * P) / res.X_init_singular_values[0])
+            shrink = 5.0 * res.noise**2 * (F + 2 * P) / res.X_init_singular_values[0]
             clean = 0.01 * res.noise * (np.sqrt(F) + np.sqrt(3 * P))
             assert flat.mu == pytest.approx(clean, rel=1e-9)
             assert res.mu == pytest.approx(max(clean, shrink), rel=1e-9)
@@ -335,7 +377,7 @@ def test_bilinear_weight_follows_the_square_of_the_noise():
 
 def test_noise_level_from_W_alone():
     clean = data_tools.make_synthetic(F=60, P=30, K=2, seed=5)
-    assert noise_level(clean.W, 2) < 1e-12 * np.sqrt(np.mean(clean.W ** 2))
+    assert noise_level(clean.W, 2) < 1e-12 * np.sqrt(np.mean(clean.W**2))
     rng = np.random.default_rng(0)
     noisy = clean.W + 0.01 * rng.standard_normal(clean.W.shape)
     assert 0.007 < noise_level(noisy, 2) < 0.0105
@@ -353,22 +395,29 @@ def test_bilinear_weights():
 @pytest.mark.parametrize("method", ["organic", "wnn", "bmm"])
 @pytest.mark.parametrize("solver", list(SOLVERS))
 def test_every_prior_with_every_solver(seq, method, solver):
-    rec = nrsfm.reconstruct(seq.W, seq.K, method=method, rotations=seq.rotations,
-                            shape_solver=solver)
+    rec = nrsfm.reconstruct(
+        seq.W, seq.K, method=method, rotations=seq.rotations, shape_solver=solver
+    )
     assert rec.settings.shape_solver == solver == rec.shape_stage.solver
-    assert e3d(rec.shapes, seq.shapes) < 1e-3              # noise-free random-motion data
+    assert e3d(rec.shapes, seq.shapes) < 1e-3  # noise-free random-motion data
     assert rec.shapes.shape == seq.shapes.shape
 
 
 def test_solver_dispatch_and_bad_input(seq):
     with pytest.raises(ValueError, match="shape_solver"):
         nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations, shape_solver="bogus")
-    for bad in (dict(prior="bogus"), dict(rank=0), dict(mu_factor=-1.0),
-                dict(gtol=-1.0), dict(max_iter=-1), dict(mu=-1.0)):
+    for bad in (
+        dict(prior="bogus"),
+        dict(rank=0),
+        dict(mu_factor=-1.0),
+        dict(gtol=-1.0),
+        dict(max_iter=-1),
+        dict(mu=-1.0),
+    ):
         with pytest.raises(ValueError):
             optimize_shapes_bilinear(seq.W, seq.rotations, seq.K, **bad)
     with pytest.raises(ValueError):
-        optimize_shapes_bilinear(seq.W, seq.rotations, 7)            # 3K > P
+        optimize_shapes_bilinear(seq.W, seq.rotations, 7)  # 3K > P
     with pytest.raises(ValueError):
         closed_form_shapes(seq.W[:-1], seq.rotations, seq.K)
 
@@ -390,6 +439,7 @@ def test_c_step_is_the_minimiser_and_the_frame_factors_invert():
     dE/dC; the per-frame factors satisfy L L' = H and L^-1 L = I, by LAPACK's batch and by
     the floored loop (a singular H_f), which agree where both apply."""
     from nrsfm.stages.shape import factors
+
     rng = np.random.default_rng(3)
     seq = data_tools.make_synthetic(F=9, P=6, K=2, motion="random", seed=2)
     F, P, r = 9, 6, 4
@@ -399,45 +449,48 @@ def test_c_step_is_the_minimiser_and_the_frame_factors_invert():
     reg = np.array([0.0, 0.2, 0.5, 0.9])
     B = rng.standard_normal((F, r))
     C = factors.c_step(B, Rf, seq.W, reg)
-    gC = factors.objective(B, C, Pi, Xi, float(np.sum(seq.W ** 2)), reg)[3]
+    gC = factors.objective(B, C, Pi, Xi, float(np.sum(seq.W**2)), reg)[3]
     assert np.linalg.norm(gC) < 1e-12 * np.linalg.norm(C)
-    A = (B[:, None, :, None] * Rf[:, :, None, :]).reshape(2 * F, 3 * r)   # rows B_f kron R_f
+    A = (B[:, None, :, None] * Rf[:, :, None, :]).reshape(2 * F, 3 * r)  # rows B_f kron R_f
     c_ref = np.linalg.solve(A.T @ A + np.diag(np.repeat(reg, 3)), A.T @ seq.W)
     assert np.allclose(C, c_ref.reshape(r, 3 * P).T, rtol=1e-10, atol=1e-12)
     H = factors.frame_hessians(C, Pi, reg)
     L, Linv = factors.frame_preconditioner(C, Pi, reg)
     assert np.allclose(L @ L.transpose(0, 2, 1), H, rtol=1e-10, atol=1e-12)
     assert np.allclose(Linv @ L, np.eye(r), atol=1e-10)
-    assert np.allclose(factors._cholesky(H), L, atol=1e-10)     # L: H plus its 1e-12 jitter
-    H[0] = np.outer(H[0, 0], H[0, 0])                   # rank one: LAPACK fails, the loop floors
+    assert np.allclose(factors._cholesky(H), L, atol=1e-10)  # L: H plus its 1e-12 jitter
+    H[0] = np.outer(H[0, 0], H[0, 0])  # rank one: LAPACK fails, the loop floors
     L2 = factors._factor(H)
     assert np.all(np.isfinite(L2)) and np.allclose(L2[1:], L[1:], atol=1e-10)
 
 
-@pytest.mark.parametrize("P, r", [(6, 4), (40, 2)])     # X# formed; factored (3P > 9r)
+@pytest.mark.parametrize("P, r", [(6, 4), (40, 2)])  # X# formed; factored (3P > 9r)
 def test_reduced_objective_is_the_objective_at_the_c_step(P, r):
     """``reduced_objective`` (the C step, then E and dE/dB alone) gives the
     values of :func:`objective` at the C step's C, in both of its branches, and the
     blocked triangular inverse (r > 8) inverts."""
     from nrsfm.stages.shape import factors
+
     rng = np.random.default_rng(5)
     F = 9
     seq = data_tools.make_synthetic(F=F, P=P, K=2, motion="random", seed=4)
     Rf = seq.rotations[:, :2]
     Pi = Rf.transpose(0, 2, 1) @ Rf
     Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(F, 2, P)).reshape(F, 3 * P)
-    w2 = float(np.sum(seq.W ** 2))
-    reg = np.linspace(0.0, 0.9, r) * w2 ** 0.5
+    w2 = float(np.sum(seq.W**2))
+    reg = np.linspace(0.0, 0.9, r) * w2**0.5
     B = rng.standard_normal((F, r))
-    C, (E, data, gB, gC) = factors.reduced_objective(B, factors.viewing_directions(Rf), Pi,
-                                                      Xi, w2, reg)
+    C, (E, data, gB, gC) = factors.reduced_objective(
+        B, factors.viewing_directions(Rf), Pi, Xi, w2, reg
+    )
     assert np.allclose(C, factors.c_step(B, Rf, seq.W, reg), rtol=1e-12, atol=1e-14)
     E_ref, data_ref, gB_ref, _ = factors.objective(B, C, Pi, Xi, w2, reg)
     assert E == pytest.approx(E_ref, rel=1e-12) and data == pytest.approx(data_ref, rel=1e-12)
     assert np.allclose(gB, gB_ref, rtol=1e-10, atol=1e-12 * np.abs(gB_ref).max())
     assert gC == 0.0
-    L = np.linalg.cholesky(np.eye(13) + (lambda A: A @ A.transpose(0, 2, 1))(
-        rng.standard_normal((5, 13, 13))))
+    L = np.linalg.cholesky(
+        np.eye(13) + (lambda A: A @ A.transpose(0, 2, 1))(rng.standard_normal((5, 13, 13)))
+    )
     assert np.allclose(factors._lower_inverse(L) @ L, np.eye(13), atol=1e-10)
 
 
@@ -448,6 +501,7 @@ def test_alignment_change_of_basis_and_the_minimiser():
     carried through the alignments as with scipy's L-BFGS-B on the same reduced objective."""
     import scipy.optimize
     from nrsfm.stages.shape import factors
+
     rng = np.random.default_rng(11)
     B, C = rng.standard_normal((12, 4)), rng.standard_normal((15, 4))
     Ba, keep, M, Mt = factors._aligned(B, C, None)
@@ -459,22 +513,27 @@ def test_alignment_change_of_basis_and_the_minimiser():
     Pi = Rf.transpose(0, 2, 1) @ Rf
     n = factors.viewing_directions(Rf)
     Xi = (Rf.transpose(0, 2, 1) @ seq.W.reshape(12, 2, 8)).reshape(12, 24)
-    w2 = float(np.sum(seq.W ** 2))
-    reg = np.array([0.0, 0.3, 0.6, 1.0]) * w2 ** 0.5 * 0.05
+    w2 = float(np.sum(seq.W**2))
+    reg = np.array([0.0, 0.3, 0.6, 1.0]) * w2**0.5 * 0.05
 
     def reduced(Bx):
         return factors.reduced_objective(Bx, n, Pi, Xi, w2, reg)
 
     from types import SimpleNamespace
 
-    problem = SimpleNamespace(reduced=reduced, Pi=Pi, reg=reg, gtol=1e-10, max_iter=5000,
-                              record=lambda *a: None)
+    problem = SimpleNamespace(
+        reduced=reduced, Pi=Pi, reg=reg, gtol=1e-10, max_iter=5000, record=lambda *a: None
+    )
     B1, C1, rel, it = factors.minimise(rng.standard_normal((12, 4)), problem)
     assert rel <= 1e-10
     E1 = reduced(B1)[1][0]
-    ref = scipy.optimize.minimize(lambda z: (lambda v: (v[0], v[2].ravel()))(
-        reduced(z.reshape(12, 4))[1]), B1.ravel() + 1e-3 * rng.standard_normal(48),
-        jac=True, method="L-BFGS-B", options=dict(gtol=1e-12, ftol=0, maxiter=5000))
+    ref = scipy.optimize.minimize(
+        lambda z: (lambda v: (v[0], v[2].ravel()))(reduced(z.reshape(12, 4))[1]),
+        B1.ravel() + 1e-3 * rng.standard_normal(48),
+        jac=True,
+        method="L-BFGS-B",
+        options=dict(gtol=1e-12, ftol=0, maxiter=5000),
+    )
     assert E1 <= ref.fun * (1 + 1e-10)
 
 
@@ -484,7 +543,7 @@ def test_lbfgs_memory_survives_factors_collapsing_to_zero():
     at mu 186 raised ZeroDivisionError): a pair whose y has underflowed is not kept."""
     from nrsfm.stages.shape.factors import _add_pair
 
-    s, y = np.ones((4, 1)), np.full((4, 1), 1e-320)     # s'y > 0, ||y|| underflows to 0
+    s, y = np.ones((4, 1)), np.full((4, 1), 1e-320)  # s'y > 0, ||y|| underflows to 0
     S, Y = [], []
     _add_pair(S, Y, s, y)
     assert S == [] and Y == []

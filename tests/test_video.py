@@ -22,8 +22,9 @@ def video():
 def _noise_texture(shape, seed):
     rng = np.random.default_rng(seed)
     small = rng.random((shape[0] // 4, shape[1] // 4)).astype(np.float32)
-    return (cv2.resize(small, shape[::-1], interpolation=cv2.INTER_CUBIC).clip(0, 1)
-            * 255).astype(np.uint8)
+    return (cv2.resize(small, shape[::-1], interpolation=cv2.INTER_CUBIC).clip(0, 1) * 255).astype(
+        np.uint8
+    )
 
 
 def _shifted_frames(n=8, occlude_at=None):
@@ -34,8 +35,9 @@ def _shifted_frames(n=8, occlude_at=None):
     frames = []
     for f in range(n):
         M = np.float32([[1, 0, 1.5 * f], [0, 1, 0.5 * f]])
-        img = cv2.warpAffine(tex, M, (240, 200), flags=cv2.INTER_LINEAR,
-                             borderMode=cv2.BORDER_REFLECT)
+        img = cv2.warpAffine(
+            tex, M, (240, 200), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
+        )
         if occlude_at is not None and f >= occlude_at:
             img[40:80, 40:80] = other[40:80, 40:80]
         frames.append(img)
@@ -48,6 +50,7 @@ def _in_square(p):
 
 # --------------------------------------------------------------------------- generator
 
+
 def test_synthetic_video_is_deterministic_and_ground_truth_is_exact(video):
     again = make_video("face", n_frames=12, size=(160, 200), grid=21, seed=3)
     np.testing.assert_array_equal(video.frames, again.frames)
@@ -55,7 +58,7 @@ def test_synthetic_video_is_deterministic_and_ground_truth_is_exact(video):
     assert (video.id0 > 0).mean() > 0.2
     # mesh vertices seen in frame 0 are located on the mesh and map back to themselves in
     # every frame (those outside the oval outline or hidden behind the relief do not)
-    pix = video.project(video.vertices)                   # (F, 2, V)
+    pix = video.project(video.vertices)  # (F, 2, V)
     tri, bary = video.locate(pix[0].T)
     ok = tri >= 0
     assert ok.mean() > 0.5
@@ -86,7 +89,7 @@ def test_forward_backward_check_stops_occluded_tracks():
     frames = _shifted_frames(8, occlude_at=4)
     for tr in (track_sparse(frames), track_dense(frames, step=6)):
         start = tr.tracks[0]
-        inside = ((start[0] > 42) & (start[0] < 72) & (start[1] > 42) & (start[1] < 72))
+        inside = (start[0] > 42) & (start[0] < 72) & (start[1] > 42) & (start[1] < 72)
         outside = ~_in_square(start) & (start[0] < 180) & (start[1] < 180)
         assert inside.sum() >= 3 and outside.sum() >= 10
         # occluded: lost exactly when the patch changes, NaN from then on
@@ -104,10 +107,10 @@ def test_forward_backward_check_stops_occluded_tracks():
 def test_without_the_checks_the_occluded_tracks_would_drift():
     frames = _shifted_frames(8, occlude_at=4)
     off = dict(fb_threshold=1e6, max_residual=1e6)
-    tr = track_sparse(frames, keep_raw=True, neighbour_px=None, **off)     # no check
+    tr = track_sparse(frames, keep_raw=True, neighbour_px=None, **off)  # no check
     start = tr.tracks[0]
     inside = (start[0] > 42) & (start[0] < 72) & (start[1] > 42) & (start[1] < 72)
-    assert tr.complete[inside].all()       # nothing noticed the occlusion
+    assert tr.complete[inside].all()  # nothing noticed the occlusion
     # the neighbour-motion check alone stops most of them (they lag behind their neighbours)
     tr = track_sparse(frames, **off)
     assert (~tr.complete[inside]).mean() > 0.5
@@ -123,6 +126,7 @@ def test_dense_tracks_cover_the_surface(video):
 
 
 # --------------------------------------------------------------------------- input errors
+
 
 def test_frames_from_folder_and_video_file(tmp_path, video):
     folder = tmp_path / "frames"
@@ -169,8 +173,10 @@ def test_bad_video_input_gives_one_line_errors(tmp_path):
         load_frames(empty)
     assert "no images" in _one_line(exc)
     flat = [np.full((80, 80), 120, np.uint8)] * 3
-    noisy = [np.clip(120 + np.random.default_rng(i).normal(0, 1, (80, 80)), 0, 255)
-             .astype(np.uint8) for i in range(3)]
+    noisy = [
+        np.clip(120 + np.random.default_rng(i).normal(0, 1, (80, 80)), 0, 255).astype(np.uint8)
+        for i in range(3)
+    ]
     for frames in (flat, noisy):
         for tracker in (track_sparse, track_dense):
             with pytest.raises(ValueError) as exc:
@@ -180,12 +186,13 @@ def test_bad_video_input_gives_one_line_errors(tmp_path):
 
 # --------------------------------------------------------------------------- reconstruction
 
+
 def test_reconstruct_tracks_uses_complete_tracks_or_missing_data():
     import data_tools as dt
 
     seq = dt.make_synthetic(F=20, P=30, K=1, seed=2)
     W = seq.W.copy()
-    W[10:, 3] = np.nan                                  # track 3 lost from frame 5 on
+    W[10:, 3] = np.nan  # track 3 lost from frame 5 on
     vr = reconstruct_tracks(W, 1, method="pseudo_inverse")
     assert vr.n_tracks == 30 and vr.n_complete == 29
     if vr.missing_data:
@@ -199,6 +206,7 @@ def test_reconstruct_tracks_uses_complete_tracks_or_missing_data():
 
 
 # --------------------------------------------------------------------------- commands
+
 
 def _run(argv):
     args = build_parser().parse_args(argv)
@@ -218,9 +226,27 @@ def test_track_and_video_commands(tmp_path, video, capsys):
     rrd, res = tmp_path / "run.rrd", tmp_path / "run.npz"
     # --detect-every 0: lost tracks (missing data) but no late ones (those:
     # test_video_completion_converges)
-    assert _run(["video", str(folder), "--dense", "--step", "8", "--detect-every", "0",
-                 "--rrd", str(rrd), "-o", str(res), "--method", "pseudo_inverse",
-                 "--quiet"]) == 0
+    assert (
+        _run(
+            [
+                "video",
+                str(folder),
+                "--dense",
+                "--step",
+                "8",
+                "--detect-every",
+                "0",
+                "--rrd",
+                str(rrd),
+                "-o",
+                str(res),
+                "--method",
+                "pseudo_inverse",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "K=1" in text and "wrote Rerun recording" in text
     assert rrd.stat().st_size > 10_000
@@ -251,8 +277,16 @@ def test_video_recording_is_small_and_decimated(tmp_path, video):
     gt = seq.shapes[:, :, vr.used]
     used = np.zeros(tr.n_points, bool)
     used[np.flatnonzero(seq.extra["valid"])[vr.used]] = True
-    info = save_video_recording(tmp_path / "v.rrd", video.frames, tr, vr.result, used,
-                                shapes_gt=gt, max_points_3d=200, max_points_2d=300)
+    info = save_video_recording(
+        tmp_path / "v.rrd",
+        video.frames,
+        tr,
+        vr.result,
+        used,
+        shapes_gt=gt,
+        max_points_3d=200,
+        max_points_2d=300,
+    )
     assert info["points_3d"] == 200 and info["points_2d"] == 300
     assert 0 < info["bytes"] < 2_000_000
     assert len(decimate(10, 3)) == 3 and list(decimate(3, 10)) == [0, 1, 2]
@@ -286,6 +320,7 @@ def test_wide_factorisation_matches_the_svd():
 
 # --------------------------------------------------------------------------- late tracks
 
+
 def _revealed_frames(n=11, reveal_at=5):
     """The shifted texture of :func:`_shifted_frames`, flat grey right of x = 150 before
     frame ``reveal_at`` (a region that becomes visible)."""
@@ -299,23 +334,26 @@ def _revealed_frames(n=11, reveal_at=5):
 @pytest.mark.parametrize("kind", ["sparse", "dense"])
 def test_trackers_start_tracks_in_newly_textured_space(kind):
     frames = _revealed_frames()
-    run = ((lambda **kw: track_sparse(frames, min_distance=6, **kw)) if kind == "sparse"
-           else (lambda **kw: track_dense(frames, step=8, **kw)))
+    run = (
+        (lambda **kw: track_sparse(frames, min_distance=6, **kw))
+        if kind == "sparse"
+        else (lambda **kw: track_dense(frames, step=8, **kw))
+    )
     plain = run()
     assert plain.started_at is None and (plain.start == 0).all()
     tr = run(detect_every=3)
     start = tr.start
     late = start > 0
-    assert set(np.unique(start[late])) <= {3, 6, 9}            # every 3rd frame
+    assert set(np.unique(start[late])) <= {3, 6, 9}  # every 3rd frame
     F = len(frames)
-    for f in range(F):                                         # NaN before the first frame
+    for f in range(F):  # NaN before the first frame
         assert np.isnan(tr.tracks[f, :, start > f]).all()
-    first = tr.tracks[start[late], :, np.flatnonzero(late)]    # (n, 2) at detection
+    first = tr.tracks[start[late], :, np.flatnonzero(late)]  # (n, 2) at detection
     assert np.isfinite(first).all()
-    revealed = first[:, 0] > 150 + 1.5 * 9                     # right of the curtain
+    revealed = first[:, 0] > 150 + 1.5 * 9  # right of the curtain
     assert revealed.sum() >= 10 and (start[late][revealed] >= 6).all()
-    assert not (tr.tracks[0, 0] > 150 + 1.5 * 9).any()         # nothing there in frame 0
-    gap = 6 if kind == "sparse" else 8                         # only where no track is
+    assert not (tr.tracks[0, 0] > 150 + 1.5 * 9).any()  # nothing there in frame 0
+    gap = 6 if kind == "sparse" else 8  # only where no track is
     for f in np.unique(start[late]):
         new, old = tr.tracks[f][:, start == f], tr.tracks[f][:, start < f]
         old = old[:, np.isfinite(old).all(axis=0)]
@@ -335,16 +373,16 @@ def test_late_tracks_get_ground_truth_in_their_first_frame(video):
     """A track that starts in frame f > 0 is located on the mesh in frame f: its true
     projection matches where it was started, in that frame and the next ones."""
     V = video.vertices.shape[2]
-    pix = video.project(video.vertices)                          # (F, 2, V) vertices
-    start = np.arange(V) % 4 * 3                                 # frames 0, 3, 6, 9
+    pix = video.project(video.vertices)  # (F, 2, V) vertices
+    start = np.arange(V) % 4 * 3  # frames 0, 3, 6, 9
     tracks = pix.copy()
     for p in range(V):
-        tracks[:start[p], :, p] = np.nan                         # NaN before the start
+        tracks[: start[p], :, p] = np.nan  # NaN before the start
     gt = video.ground_truth(tracks)
     ok = gt["valid"]
     assert ok[start > 0].mean() > 0.5 and ok[start == 0].mean() > 0.5
     late = ok & (start > 0)
-    err = np.linalg.norm(gt["pixels"] - pix, axis=1)[:, late]   # (F, n)
+    err = np.linalg.norm(gt["pixels"] - pix, axis=1)[:, late]  # (F, n)
     assert np.median(err) < 1e-6
     seq = video.sequence(tracks)
     assert seq.W.shape[1] == ok.sum() and np.isfinite(seq.shapes).all()
@@ -360,12 +398,18 @@ def test_recording_shows_late_and_undetermined_tracks(tmp_path, video):
     vr = _reconstruct_tracks_warning_iff_capped(tr.W, 1, method="pseudo_inverse")
     assert vr.missing_data and vr.result.fill_gain is not None
     und = vr.result.undetermined
-    assert 0 < und.sum() < und.size                           # short late tracks
-    info = save_video_recording(tmp_path / "late.rrd", video.frames, tr, vr.result, vr.used,
-                                max_points_3d=None, max_points_2d=None)
+    assert 0 < und.sum() < und.size  # short late tracks
+    info = save_video_recording(
+        tmp_path / "late.rrd",
+        video.frames,
+        tr,
+        vr.result,
+        vr.used,
+        max_points_3d=None,
+        max_points_2d=None,
+    )
     assert info["points_3d"] == int((~und).sum())
-    colors = _track_colors(vr.used, np.isin(np.arange(tr.n_points),
-                                            np.flatnonzero(vr.used)[und]))
+    colors = _track_colors(vr.used, np.isin(np.arange(tr.n_points), np.flatnonzero(vr.used)[und]))
     assert (colors[np.flatnonzero(vr.used)[und]] == UNDETERMINED_COLOR).all()
 
 
@@ -378,7 +422,7 @@ def _reconstruct_tracks_warning_iff_capped(W, K, **kw):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         vr = reconstruct_tracks(W, K, **kw)
-    got = [(w.category, str(w.message)[:len(CAP_WARNING)]) for w in caught]
+    got = [(w.category, str(w.message)[: len(CAP_WARNING)]) for w in caught]
     assert got == ([] if vr.result.completion.converged else [(RuntimeWarning, CAP_WARNING)])
     return vr
 

@@ -22,7 +22,7 @@ def video():
 def test_written_video_and_ground_truth_read_back(tmp_path, video):
     frames, truth = dt.write_video(video, tmp_path / "v")
     assert sorted(p.name for p in frames.iterdir())[:2] == ["000000.png", "000001.png"]
-    assert np.array_equal(dt.load_frames(frames), video.frames)       # lossless
+    assert np.array_equal(dt.load_frames(frames), video.frames)  # lossless
     loaded = dt.load_ground_truth(truth)
     assert loaded.frames is None and loaded.n_frames == 8 and loaded.surface == "sheet"
     tracks = dt.track_sparse(video.frames, detect_every=2).tracks
@@ -34,12 +34,13 @@ def test_written_video_and_ground_truth_read_back(tmp_path, video):
 def test_score_of_a_perfect_and_of_a_wrong_reconstruction(video):
     """Scored on the used tracks that started on the surface, column for column."""
     T = dt.track_sparse(video.frames).tracks
-    T[:, :, 0] = 2.0                              # a track on the background: no truth
+    T[:, :, 0] = 2.0  # a track on the background: no truth
     gt = video.ground_truth(T)
     used = np.isfinite(T).all(axis=(0, 1))
     shapes = np.nan_to_num(video.pixel_scale * gt["world"][:, :, used])  # 0: no truth
-    vr = SimpleNamespace(used=used, result=SimpleNamespace(shapes=shapes,
-                                                           rotations=video.rotations))
+    vr = SimpleNamespace(
+        used=used, result=SimpleNamespace(shapes=shapes, rotations=video.rotations)
+    )
     sc = dt.score_tracks(video, T, vr)
     assert used[0] and not gt["valid"][0]
     assert sc["n_used"] == used.sum() and sc["n_scored"] == (used & gt["valid"]).sum()
@@ -58,8 +59,9 @@ def test_ground_truth_file_errors(tmp_path, video):
     with pytest.raises(ValueError, match=r"has no format .* \(found arrays: \['W'\]\)"):
         dt.load_ground_truth(tmp_path / "other.npz")
     with pytest.raises(ValueError, match="has no frames"):
-        dt.write_video(dt.load_ground_truth(dt.save_ground_truth(video, tmp_path / "g.npz")),
-                       tmp_path / "v")
+        dt.write_video(
+            dt.load_ground_truth(dt.save_ground_truth(video, tmp_path / "g.npz")), tmp_path / "v"
+        )
 
 
 def test_demo_video_scores_the_tracks_of_nrsfm_video(tmp_path, monkeypatch, capsys):
@@ -67,12 +69,17 @@ def test_demo_video_scores_the_tracks_of_nrsfm_video(tmp_path, monkeypatch, caps
     prints e3d; the Python route on the same frames (nrsfm video's tracking settings:
     sparse, new tracks every 5 frames) gives the same tracks and the same score."""
     monkeypatch.setenv("NRSFM_OUT", str(tmp_path))
-    assert main(["demo", "--video", "--frames", "12", "--size", "120x160", "--seed", "1",
-                 "--quiet"]) == 0
+    assert (
+        main(["demo", "--video", "--frames", "12", "--size", "120x160", "--seed", "1", "--quiet"])
+        == 0
+    )
     out = capsys.readouterr().out
     assert f"running: nrsfm video {tmp_path / 'demo_video' / 'frames'} --ground-truth " in out
-    printed = re.search(r"\((\d+) of the (\d+) used tracks.*e3d ([\d.]+), e3d \(Akhter\) "
-                        r"([\d.]+), e_R ([\d.]+)", out)
+    printed = re.search(
+        r"\((\d+) of the (\d+) used tracks.*e3d ([\d.]+), e3d \(Akhter\) "
+        r"([\d.]+), e_R ([\d.]+)",
+        out,
+    )
     assert printed, out
     frames = dt.load_frames(tmp_path / "demo_video" / "frames")
     truth = dt.load_ground_truth(tmp_path / "demo_video" / "ground_truth.npz")
@@ -80,8 +87,13 @@ def test_demo_video_scores_the_tracks_of_nrsfm_video(tmp_path, monkeypatch, caps
     tracks = dt.track_sparse(frames, max_points=2000, detect_every=5)
     vr = reconstruct_tracks(tracks.W, 1, seed=1, progress=False)
     sc = dt.score_tracks(truth, tracks, vr)
-    assert printed.groups() == (str(sc["n_scored"]), str(sc["n_used"]), f"{sc['e3d']:.4f}",
-                                f"{sc['e3d_akhter']:.4f}", f"{sc['e_R']:.4f}")
+    assert printed.groups() == (
+        str(sc["n_scored"]),
+        str(sc["n_used"]),
+        f"{sc['e3d']:.4f}",
+        f"{sc['e3d_akhter']:.4f}",
+        f"{sc['e_R']:.4f}",
+    )
     assert sc["e3d"] < 0.5
 
 
@@ -90,14 +102,27 @@ def test_video_ground_truth_saved_with_output_and_checked(tmp_path, video, capsy
     res = tmp_path / "res.npz"
     # no late tracks (--detect-every 0): the completion converges, so the run prints no
     # warning (with late tracks it stops at its cap: tests/test_video.py)
-    assert main(["video", str(frames), "--ground-truth", str(truth), "-o", str(res),
-                 "--detect-every", "0", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "video",
+                str(frames),
+                "--ground-truth",
+                str(truth),
+                "-o",
+                str(res),
+                "--detect-every",
+                "0",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert "errors against ground truth (" in capsys.readouterr().out
     with np.load(res) as z:
         assert 0 < float(z["e3d"]) < 1 and int(z["n_scored"]) <= int(z["used"].sum())
     with pytest.raises(SystemExit):
-        main(["video", str(frames), "--ground-truth", str(truth), "--max-frames", "5",
-              "--quiet"])
+        main(["video", str(frames), "--ground-truth", str(truth), "--max-frames", "5", "--quiet"])
     assert "has 8 frames but 5 were read" in capsys.readouterr().err
 
 

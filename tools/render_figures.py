@@ -33,8 +33,10 @@ from nrsfm.views import figures, recording_content  # noqa: E402
 def render(seq, out, tag):
     t0 = time.perf_counter()
     res = nrsfm.reconstruct(seq.W, seq.K, method="organic")
-    print(f"  {seq.name}: organic (estimated rotations) {time.perf_counter() - t0:.1f}s, "
-          f"errors {res.errors(seq.shapes, seq.rotations)}")
+    print(
+        f"  {seq.name}: organic (estimated rotations) {time.perf_counter() - t0:.1f}s, "
+        f"errors {res.errors(seq.shapes, seq.rotations)}"
+    )
     content = recording_content(res, seq)
     written = []
 
@@ -44,29 +46,50 @@ def render(seq, out, tag):
         plt.close(fig)
         written.append(path)
 
-    save(figures.shapes_figure(res, seq, content=content,
-                               title=f"{seq.name}: organic reconstruction (estimated "
-                                     f"rotations) vs ground truth, e3d {content.errors.get('e3d', float('nan')):.3g}"),
-         "shapes")
+    save(
+        figures.shapes_figure(
+            res,
+            seq,
+            content=content,
+            title=f"{seq.name}: organic reconstruction (estimated "
+            f"rotations) vs ground truth, e3d {content.errors.get('e3d', float('nan')):.3g}",
+        ),
+        "shapes",
+    )
     if content.cameras_gt is not None or res.rotation_stage is not None:
-        save(figures.cameras_figure(res, seq, content=content,
-                                    title=f"{seq.name}: camera trajectory "
-                                          "(estimated rotations)"), "cameras")
+        save(
+            figures.cameras_figure(
+                res,
+                seq,
+                content=content,
+                title=f"{seq.name}: camera trajectory (estimated rotations)",
+            ),
+            "cameras",
+        )
     runs, labels = [res], ["organic (first singular value free)"]
     for method, lab in (("wnn", "weighted nuclear norm"), ("bmm", "nuclear norm (BMM)")):
-        if seq.rotations is not None:       # same rotations for all three: compare priors
-            runs.append(nrsfm.reconstruct(seq.W, seq.K, method=method,
-                                          rotations=res.rotations))
+        if seq.rotations is not None:  # same rotations for all three: compare priors
+            runs.append(nrsfm.reconstruct(seq.W, seq.K, method=method, rotations=res.rotations))
             labels.append(lab)
     errs = [r.errors(seq.shapes)["e3d"] for r in runs]
-    save(figures.admm_figure(runs, [f"{lab}: e3d {e:.3g}" for lab, e in zip(labels, errs)],
-                             title=f"{seq.name}: shape-stage history (default solver), same rotations"),
-         "admm")
+    save(
+        figures.admm_figure(
+            runs,
+            [f"{lab}: e3d {e:.3g}" for lab, e in zip(labels, errs)],
+            title=f"{seq.name}: shape-stage history (default solver), same rotations",
+        ),
+        "admm",
+    )
     sv = content.singular_values
-    save(figures.singular_values_figure([sv["W"], sv["X_init"]],
-                                        ["W / scale", "X_init# / scale"], mark=3 * seq.K,
-                                        title=f"{seq.name}: singular values (3K = {3 * seq.K})"),
-         "singular_values")
+    save(
+        figures.singular_values_figure(
+            [sv["W"], sv["X_init"]],
+            ["W / scale", "X_init# / scale"],
+            mark=3 * seq.K,
+            title=f"{seq.name}: singular values (3K = {3 * seq.K})",
+        ),
+        "singular_values",
+    )
     return written
 
 

@@ -75,9 +75,13 @@ def _cdp_screenshot(ws_url, width, height):
 
     async def run():
         conn = await websocket_connect(ws_url, max_message_size=1 << 28)
-        calls = [("Emulation.setDeviceMetricsOverride",
-                  {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}),
-                 ("Page.captureScreenshot", {"format": "png"})]
+        calls = [
+            (
+                "Emulation.setDeviceMetricsOverride",
+                {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+            ),
+            ("Page.captureScreenshot", {"format": "png"}),
+        ]
         result = None
         for i, (method, params) in enumerate(calls, 1):
             await conn.write_message(json.dumps({"id": i, "method": method, "params": params}))
@@ -99,33 +103,69 @@ def screenshot(rrd, out, chromium=None, wait=40.0, size=(1600, 1000)):
     rrd, out = Path(rrd).resolve(), Path(out).resolve()
     if not rrd.is_file():
         raise SystemExit(f"error: no such recording: {rrd}")
-    browser = _find(["chromium", "chromium-browser", "google-chrome", "google-chrome-stable"],
-                    chromium)
+    browser = _find(
+        ["chromium", "chromium-browser", "google-chrome", "google-chrome-stable"], chromium
+    )
     if browser is None:
-        raise SystemExit("error: no Chromium found: pass --chromium PATH "
-                         "(e.g. apt-get install chromium)")
+        raise SystemExit(
+            "error: no Chromium found: pass --chromium PATH (e.g. apt-get install chromium)"
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     grpc, web, devtools = _free_port(), _free_port(), _free_port()
     work = Path(tempfile.mkdtemp(prefix="rrd_screenshot_"))
     procs = []
     try:
         log = open(work / "rerun.log", "w")
-        procs.append(subprocess.Popen(
-            [_rerun_exe(), "--web-viewer", "--renderer", "webgl", "--bind", "127.0.0.1",
-             "--port", str(grpc), "--web-viewer-port", str(web), str(rrd)],
-            stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
-        _wait_for(lambda: "Hosting a web-viewer" in (work / "rerun.log").read_text(), 60,
-                  "the rerun web viewer")
+        procs.append(
+            subprocess.Popen(
+                [
+                    _rerun_exe(),
+                    "--web-viewer",
+                    "--renderer",
+                    "webgl",
+                    "--bind",
+                    "127.0.0.1",
+                    "--port",
+                    str(grpc),
+                    "--web-viewer-port",
+                    str(web),
+                    str(rrd),
+                ],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        )
+        _wait_for(
+            lambda: "Hosting a web-viewer" in (work / "rerun.log").read_text(),
+            60,
+            "the rerun web viewer",
+        )
         source = urllib.parse.quote(f"rerun+http://127.0.0.1:{grpc}/proxy", safe="")
         url = f"http://127.0.0.1:{web}/?url={source}&renderer=webgl"
-        procs.append(subprocess.Popen(
-            [browser, "--headless=new", "--no-sandbox", "--no-first-run", "--test-type",
-             f"--user-data-dir={work / 'profile'}", f"--remote-debugging-port={devtools}",
-             "--remote-debugging-address=127.0.0.1", "--use-angle=swiftshader",
-             "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-             "--disable-dev-shm-usage", f"--window-size={size[0]},{size[1]}", url],
-            stdout=subprocess.DEVNULL, stderr=open(work / "chromium.log", "w"),
-            start_new_session=True))
+        procs.append(
+            subprocess.Popen(
+                [
+                    browser,
+                    "--headless=new",
+                    "--no-sandbox",
+                    "--no-first-run",
+                    "--test-type",
+                    f"--user-data-dir={work / 'profile'}",
+                    f"--remote-debugging-port={devtools}",
+                    "--remote-debugging-address=127.0.0.1",
+                    "--use-angle=swiftshader",
+                    "--enable-unsafe-swiftshader",
+                    "--ignore-gpu-blocklist",
+                    "--disable-dev-shm-usage",
+                    f"--window-size={size[0]},{size[1]}",
+                    url,
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=open(work / "chromium.log", "w"),
+                start_new_session=True,
+            )
+        )
 
         def pages():
             try:
@@ -135,7 +175,7 @@ def screenshot(rrd, out, chromium=None, wait=40.0, size=(1600, 1000)):
                 return []
 
         _wait_for(lambda: bool(pages()), 60, "Chromium's DevTools endpoint")
-        time.sleep(wait)                 # the viewer loads its wasm, then the recording
+        time.sleep(wait)  # the viewer loads its wasm, then the recording
         png = _cdp_screenshot(pages()[0]["webSocketDebuggerUrl"], *size)
         out.write_bytes(png)
     finally:
@@ -166,8 +206,12 @@ def readme(chromium=None, wait=40.0, out_dir=ROOT / "docs" / "figures"):
             print("NRSFM_DATA not set: pickup screenshot skipped")
         for name, args in jobs:
             rrd = Path(tmp) / f"{name}.rrd"
-            subprocess.run([sys.executable, "-m", "nrsfm", *args, "--rrd", str(rrd)], env=env,
-                           check=True, stdout=subprocess.DEVNULL)
+            subprocess.run(
+                [sys.executable, "-m", "nrsfm", *args, "--rrd", str(rrd)],
+                env=env,
+                check=True,
+                stdout=subprocess.DEVNULL,
+            )
             print("wrote", screenshot(rrd, Path(out_dir) / f"viewer_{name}.png", chromium, wait))
 
 
@@ -175,11 +219,18 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("rrd", nargs="?", help="recording (.rrd)")
     p.add_argument("out", nargs="?", help="PNG to write")
-    p.add_argument("--readme", action="store_true",
-                   help="make the README's viewer screenshots (docs/figures/viewer_*.png)")
+    p.add_argument(
+        "--readme",
+        action="store_true",
+        help="make the README's viewer screenshots (docs/figures/viewer_*.png)",
+    )
     p.add_argument("--chromium", help="Chromium executable (default: found on PATH)")
-    p.add_argument("--wait", type=float, default=40.0,
-                   help="seconds to let the viewer load before the capture (default 40)")
+    p.add_argument(
+        "--wait",
+        type=float,
+        default=40.0,
+        help="seconds to let the viewer load before the capture (default 40)",
+    )
     p.add_argument("--size", default="1600x1000", help="WIDTHxHEIGHT (default 1600x1000)")
     a = p.parse_args(argv)
     if a.readme:

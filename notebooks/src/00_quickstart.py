@@ -32,7 +32,7 @@
 import os
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")          # small matrices: one BLAS thread is fastest
+    os.environ.setdefault(_v, "1")  # small matrices: one BLAS thread is fastest
 
 import time
 
@@ -41,8 +41,14 @@ import numpy as np
 
 import data_tools
 import nrsfm
-from nrsfm.views import (figures, output_path, recording_content, save_recording,
-                         show_recording, shown_path)
+from nrsfm.views import (
+    figures,
+    output_path,
+    recording_content,
+    save_recording,
+    show_recording,
+    shown_path,
+)
 
 # %% [markdown]
 # ## The data
@@ -56,7 +62,7 @@ seq = data_tools.default_sequence()
 print(seq)
 print("W:", seq.W.shape, " GT shapes:", seq.shapes.shape, " GT rotations:", seq.rotations.shape)
 assert seq.W.shape == (2 * 150, 45) and seq.K == 3
-assert np.allclose(seq.W.mean(axis=1), 0)                      # rows are centred
+assert np.allclose(seq.W.mean(axis=1), 0)  # rows are centred
 assert np.allclose(seq.W.reshape(150, 2, 45), seq.shapes[:, :2])  # orthographic projection
 
 # %% [markdown]
@@ -67,7 +73,7 @@ assert np.allclose(seq.W.reshape(150, 2, 45), seq.shapes[:, :2])  # orthographic
 
 # %%
 t0 = time.perf_counter()
-result = nrsfm.reconstruct(seq.W, seq.K)                        # method="organic"
+result = nrsfm.reconstruct(seq.W, seq.K)  # method="organic"
 elapsed = time.perf_counter() - t0
 print(result.summary())
 errors = result.errors(seq.shapes, seq.rotations)

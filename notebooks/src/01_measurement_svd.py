@@ -63,14 +63,17 @@ fact = factorize(seq.W, K)
 s = fact.singular_values
 C, R = seq.extra["coefficients"], seq.rotations
 M_true = np.concatenate([C[:, k, None, None] * R[:, :2] for k in range(K)], axis=2).reshape(
-    2 * F, 3 * K)
+    2 * F, 3 * K
+)
 angles = np.rad2deg(subspace_angles(M_true, fact.M_hat))
-print("singular values:", np.round(s[:3 * K + 2], 4))
-print(f"sigma_3K+1 / sigma_1 = {s[3 * K] / s[0]:.1e}, residual {fact.residual:.1e}, "
-      f"largest principal angle {angles.max():.1e} deg")
+print("singular values:", np.round(s[: 3 * K + 2], 4))
+print(
+    f"sigma_3K+1 / sigma_1 = {s[3 * K] / s[0]:.1e}, residual {fact.residual:.1e}, "
+    f"largest principal angle {angles.max():.1e} deg"
+)
 assert fact.M_hat.shape == (2 * F, 3 * K) and fact.B_hat.shape == (3 * K, P)
-assert s[3 * K] / s[0] < 1e-12 and fact.residual < 1e-12     # measured ~1e-16
-assert angles.max() < 1e-8                                    # measured ~1e-13 deg
+assert s[3 * K] / s[0] < 1e-12 and fact.residual < 1e-12  # measured ~1e-16
+assert angles.max() < 1e-8  # measured ~1e-13 deg
 figures.singular_values_figure(s, mark=3 * K, title="noise-free W: exactly 3K = 9 non-zero")
 plt.show()
 
@@ -120,13 +123,16 @@ for noise in (0.0, 0.01, 0.05):
     gap = f_n.singular_values[3 * K - 1] / max(f_n.singular_values[3 * K], 1e-300)
     rows.append((noise, f_n.residual, gap, ang))
     spectra.append(f_n.singular_values)
-    print(f"noise {noise:4.2f}: residual {f_n.residual:.4f}  sigma_3K/sigma_3K+1 {gap:9.3g}  "
-          f"max angle {ang:6.2f} deg")
+    print(
+        f"noise {noise:4.2f}: residual {f_n.residual:.4f}  sigma_3K/sigma_3K+1 {gap:9.3g}  "
+        f"max angle {ang:6.2f} deg"
+    )
 for noise, res, gap, ang in rows[1:]:
-    assert 0.5 * noise < res < noise            # measured 0.86 and 0.86 x noise
-assert rows[1][2] > 5 and rows[2][2] > 1.5      # the 3K gap survives (measured 9.7, 2.1)
-figures.singular_values_figure(spectra, [f"noise {r[0]}" for r in rows], mark=3 * K,
-                               title="singular values of W with noise")
+    assert 0.5 * noise < res < noise  # measured 0.86 and 0.86 x noise
+assert rows[1][2] > 5 and rows[2][2] > 1.5  # the 3K gap survives (measured 9.7, 2.1)
+figures.singular_values_figure(
+    spectra, [f"noise {r[0]}" for r in rows], mark=3 * K, title="singular values of W with noise"
+)
 plt.show()
 
 # %% [markdown]
@@ -146,8 +152,10 @@ if MOCAP is not None and (MOCAP / "pickup.mat").is_file():
     mocap = data_tools.load_mocap("pickup", data_dir=MOCAP)
     f_m = factorize(mocap.W, mocap.K)
     sm = f_m.singular_values
-    print(f"{mocap}: rank-{3 * mocap.K} residual {f_m.residual:.4f}, "
-          f"sigma_3K+1/sigma_1 {sm[3 * mocap.K] / sm[0]:.2e}")
+    print(
+        f"{mocap}: rank-{3 * mocap.K} residual {f_m.residual:.4f}, "
+        f"sigma_3K+1/sigma_1 {sm[3 * mocap.K] / sm[0]:.2e}"
+    )
     assert 1e-4 < f_m.residual < 0.2
     figures.singular_values_figure(sm, mark=3 * mocap.K, title="pickup: singular values of W")
     plt.show()

@@ -67,7 +67,7 @@ def triplet_cameras(G, M_hat):
     """(F, 2, 3) cameras of one triplet: the nearest matrix with orthonormal rows to each
     M_f G (polar factor, keeps the frame's sign), and |c_f| (RMS row norm)."""
     B = (M_hat @ G).reshape(-1, 2, 3)
-    c = np.sqrt((B ** 2).sum(axis=(1, 2)) / 2)
+    c = np.sqrt((B**2).sum(axis=(1, 2)) / 2)
     U, _, Vt = np.linalg.svd(B, full_matrices=False)
     return U @ Vt, c
 
@@ -107,20 +107,21 @@ fact = factorize(seq.W / np.std(seq.W), K)
 M_hat = fact.M_hat
 C, R = seq.extra["coefficients"], seq.rotations
 M_true = np.concatenate([C[:, k, None, None] * R[:, :2] for k in range(K)], axis=2).reshape(
-    2 * F, 3 * K)
+    2 * F, 3 * K
+)
 G_true = np.linalg.lstsq(M_hat, M_true, rcond=None)[0]
-true_costs = [triplet_cost(G_true[:, 3 * k:3 * k + 3], M_hat) for k in range(K)]
+true_costs = [triplet_cost(G_true[:, 3 * k : 3 * k + 3], M_hat) for k in range(K)]
 print("Dai's cost of the true triplets:", np.array(true_costs))
 assert max(true_costs) < 1e-15
 
 A = constraint_matrix(M_hat)
 n, d = 3 * K, 2 * K * K - K
-_, sv_A, Vt = np.linalg.svd(A)               # singular values in decreasing order
-basis = Vt[-d:].T                             # the solution space: null space of A
+_, sv_A, Vt = np.linalg.svd(A)  # singular values in decreasing order
+basis = Vt[-d:].T  # the solution space: null space of A
 print(f"A: {A.shape} (2F x n(n+1)/2 = {n * (n + 1) // 2}); null-space basis {basis.shape}")
-print("smallest singular values of A:", np.array2string(sv_A[-d - 2:], precision=2))
+print("smallest singular values of A:", np.array2string(sv_A[-d - 2 :], precision=2))
 assert basis.shape == (n * (n + 1) // 2, d)
-assert sv_A[-d] / sv_A[0] < 1e-6 and sv_A[-d - 1] / sv_A[0] > 1e-3   # a clean gap at 2K^2-K
+assert sv_A[-d] / sv_A[0] < 1e-6 and sv_A[-d - 1] / sv_A[0] > 1e-3  # a clean gap at 2K^2-K
 
 # %% [markdown]
 # The penalised relaxation's triplet, refined, and the library's search: both exact here.
@@ -132,15 +133,21 @@ t_rel = time.perf_counter() - t0
 t0 = time.perf_counter()
 search = search_triplet(M_hat, K)
 t_search = time.perf_counter() - t0
-for label, Gs, costs, secs in (("relaxed", G_rel[None], np.array([cost_rel]), t_rel),
-                               ("search", search.G, search.costs, t_search)):
+for label, Gs, costs, secs in (
+    ("relaxed", G_rel[None], np.array([cost_rel]), t_rel),
+    ("search", search.G, search.costs, t_search),
+):
     e = [sign_free_rotation_error(triplet_cameras(G, M_hat)[0], R) for G in Gs]
-    print(f"{label:8s} {len(Gs)} triplet(s) in {secs:.2f} s: "
-          f"cost {np.array2string(costs, precision=1)}, "
-          f"e_R {np.array2string(np.array(e), precision=1)}")
-    assert max(e) < 1e-5                       # every triplet is exact (e_R printed above)
-print(f"search: {search.n_starts} starts, the best minimum reached by {search.hits}, "
-      f"stopped on {search.stopped!r}")
+    print(
+        f"{label:8s} {len(Gs)} triplet(s) in {secs:.2f} s: "
+        f"cost {np.array2string(costs, precision=1)}, "
+        f"e_R {np.array2string(np.array(e), precision=1)}"
+    )
+    assert max(e) < 1e-5  # every triplet is exact (e_R printed above)
+print(
+    f"search: {search.n_starts} starts, the best minimum reached by {search.hits}, "
+    f"stopped on {search.stopped!r}"
+)
 
 # %% [markdown]
 # Each triplet also carries its coefficients $c_{fk}$ (the row norms of
@@ -170,11 +177,17 @@ plt.show()
 noisy = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.02, seed=7)
 f_noisy = factorize(noisy.W / np.std(noisy.W), K)
 r_noisy = search_triplet(f_noisy.M_hat, K)
-e_noisy = [sign_free_rotation_error(triplet_cameras(G, f_noisy.M_hat)[0], noisy.rotations)
-           for G in r_noisy.G]
-print("costs", np.array2string(r_noisy.costs, precision=3), " e_R",
-      np.array2string(np.array(e_noisy), precision=4))
-assert e_noisy[0] < 0.1            # the best-cost triplet comes first (e_R printed above)
+e_noisy = [
+    sign_free_rotation_error(triplet_cameras(G, f_noisy.M_hat)[0], noisy.rotations)
+    for G in r_noisy.G
+]
+print(
+    "costs",
+    np.array2string(r_noisy.costs, precision=3),
+    " e_R",
+    np.array2string(np.array(e_noisy), precision=4),
+)
+assert e_noisy[0] < 0.1  # the best-cost triplet comes first (e_R printed above)
 
 # %% [markdown]
 # ## MoCap (when `NRSFM_DATA` is set): the minima of Dai's cost
@@ -197,15 +210,23 @@ if os.environ.get("NRSFM_DATA"):
     s_p = search_triplet(f_p.M_hat, pickup.K)
     out["search"] = (s_p.G, s_p.costs, time.perf_counter() - t0)
     for label, (Gs, costs, secs) in out.items():
-        e_p = np.array([sign_free_rotation_error(triplet_cameras(G, f_p.M_hat)[0],
-                                                 pickup.rotations) for G in Gs])
+        e_p = np.array(
+            [
+                sign_free_rotation_error(triplet_cameras(G, f_p.M_hat)[0], pickup.rotations)
+                for G in Gs
+            ]
+        )
         out[label] = (costs, e_p)
-        print(f"{label:8s} {secs:5.2f} s, {len(Gs)} distinct minima: best cost "
-              f"{costs[0]:.4f}, e_R {e_p[0]:.4f}; all costs "
-              f"{np.array2string(costs, precision=4, max_line_width=200)}, e_R "
-              f"{np.array2string(e_p, precision=2, max_line_width=200)}")
-    print(f"search: {s_p.n_starts} starts ({', '.join(h[0] for h in s_p.history)}), the "
-          f"best minimum reached by {s_p.hits}, stopped on {s_p.stopped!r}")
+        print(
+            f"{label:8s} {secs:5.2f} s, {len(Gs)} distinct minima: best cost "
+            f"{costs[0]:.4f}, e_R {e_p[0]:.4f}; all costs "
+            f"{np.array2string(costs, precision=4, max_line_width=200)}, e_R "
+            f"{np.array2string(e_p, precision=2, max_line_width=200)}"
+        )
+    print(
+        f"search: {s_p.n_starts} starts ({', '.join(h[0] for h in s_p.history)}), the "
+        f"best minimum reached by {s_p.hits}, stopped on {s_p.stopped!r}"
+    )
     paper_er = {m: published_value("mocap_rotation_error", m)["pickup"] for m in ("ours", "BMM")}
     print(f"paper e_R on pickup: ours {paper_er['ours']}, BMM {paper_er['BMM']}")
     assert out["relaxed"][1][0] < 0.15 and out["search"][1][0] < 0.15
@@ -235,21 +256,30 @@ if os.environ.get("NRSFM_DATA"):
     G_one, cost_one = relaxed_triplet(f_n.M_hat, pickup.K)
     srch = search_triplet(f_n.M_hat, pickup.K, seed=0)
     e_one = sign_free_rotation_error(triplet_cameras(G_one, f_n.M_hat)[0], pickup.rotations)
-    e_srch = sign_free_rotation_error(triplet_cameras(srch.G[0], f_n.M_hat)[0],
-                                      pickup.rotations)
+    e_srch = sign_free_rotation_error(triplet_cameras(srch.G[0], f_n.M_hat)[0], pickup.rotations)
     print(f"single relaxation: cost {cost_one:.1f}, e_R {e_one:.3f}")
-    print(f"search: cost {srch.costs[0]:.1f}, e_R {e_srch:.3f}, {srch.n_starts} starts, "
-          f"best reached by {srch.hits}, stopped on {srch.stopped!r}")
-    print(f"the search's minimum is {cost_one / srch.costs[0]:.1f}x cheaper than the "
-          f"single relaxation's")
+    print(
+        f"search: cost {srch.costs[0]:.1f}, e_R {e_srch:.3f}, {srch.n_starts} starts, "
+        f"best reached by {srch.hits}, stopped on {srch.stopped!r}"
+    )
+    print(
+        f"the search's minimum is {cost_one / srch.costs[0]:.1f}x cheaper than the "
+        f"single relaxation's"
+    )
     assert srch.costs[0] < 0.5 * cost_one and e_srch < 0.3 < e_one
     assert srch.hits >= 2
-    e_minima = np.array([sign_free_rotation_error(triplet_cameras(G, f_n.M_hat)[0],
-                                                  pickup.rotations) for G in srch.G])
+    e_minima = np.array(
+        [
+            sign_free_rotation_error(triplet_cameras(G, f_n.M_hat)[0], pickup.rotations)
+            for G in srch.G
+        ]
+    )
     mocap_rows = (srch.costs, e_minima)
-    print(f"the search's {len(srch.G)} distinct minima: costs "
-          f"{np.array2string(srch.costs, precision=1)}, e_R "
-          f"{np.array2string(e_minima, precision=3)}")
+    print(
+        f"the search's {len(srch.G)} distinct minima: costs "
+        f"{np.array2string(srch.costs, precision=1)}, e_R "
+        f"{np.array2string(e_minima, precision=3)}"
+    )
     fig, ax = plt.subplots(figsize=(5, 3.2))
     ax.loglog(srch.costs, e_minima, "o", label="the search's minima", alpha=0.7)
     ax.loglog([cost_one], [e_one], "s", label="single relaxation", alpha=0.7)
@@ -272,11 +302,17 @@ path = output_path("02_corrective_triplets.rrd")
 rec = rr.RecordingStream("nrsfm-02", recording_id="02_corrective_triplets")
 rec.save(path)
 frames = rr.TimeColumn("frame", sequence=np.arange(F))
-rec.send_columns("/synthetic/coefficient/search_triplet", indexes=[frames],
-                 columns=rr.Scalars.columns(scalars=coeff))
+rec.send_columns(
+    "/synthetic/coefficient/search_triplet",
+    indexes=[frames],
+    columns=rr.Scalars.columns(scalars=coeff),
+)
 for k in range(K):
-    rec.send_columns(f"/synthetic/true_coefficient/basis_{k + 1}", indexes=[frames],
-                     columns=rr.Scalars.columns(scalars=C[:, k]))
+    rec.send_columns(
+        f"/synthetic/true_coefficient/basis_{k + 1}",
+        indexes=[frames],
+        columns=rr.Scalars.columns(scalars=C[:, k]),
+    )
 rec.log("/synthetic/constraint_singular_values", rr.BarChart(sv_A), static=True)
 if mocap_rows is not None:
     rec.log("/pickup_noisy/minimum_cost", rr.BarChart(mocap_rows[0]), static=True)

@@ -45,9 +45,15 @@ from nrsfm.stages.measurement import factorize, working_scale
 from nrsfm.views import output_path, save_recording, show_recording, shown_path
 from nrsfm.geometry import rotation_angle
 from nrsfm.published import published_value
-from nrsfm.stages.rotations import (FLIP, MIRROR, RotationSettings, estimate_rotations,
-                                    filter_rotations, register_rotations,
-                                    resolve_depth_signs, rotations_from_triplets)
+from nrsfm.stages.rotations import (
+    FLIP,
+    RotationSettings,
+    estimate_rotations,
+    filter_rotations,
+    register_rotations,
+    resolve_depth_signs,
+    rotations_from_triplets,
+)
 
 # %% [markdown]
 # ## Lifting the true triplets of a noise-free sequence
@@ -64,9 +70,10 @@ Wn = seq.W / working_scale(seq.W)
 M_hat = factorize(Wn, K).M_hat
 C, R_gt = seq.extra["coefficients"], seq.rotations
 M_true = np.concatenate([C[:, k, None, None] * R_gt[:, :2] for k in range(K)], axis=2).reshape(
-    2 * F, 3 * K)
+    2 * F, 3 * K
+)
 G_true = np.linalg.lstsq(M_hat, M_true, rcond=None)[0]
-G_k = np.stack([G_true[:, 3 * k:3 * k + 3] for k in range(K)])
+G_k = np.stack([G_true[:, 3 * k : 3 * k + 3] for k in range(K)])
 R_k, coef, valid = rotations_from_triplets(M_hat, G_k)
 for k in range(K):
     neg = C[:, k] < 0
@@ -74,8 +81,7 @@ for k in range(K):
     dev = np.abs(R_k[k] - expect).max()
     print(f"triplet {k + 1}: {neg.sum():3d} frames with c_fk < 0; max |R^k - expected| {dev:.1e}")
     assert valid[k].all() and dev < 1e-8
-    assert np.allclose(coef[k] / coef[k].max(), np.abs(C[:, k]) / np.abs(C[:, k]).max(),
-                       atol=1e-8)
+    assert np.allclose(coef[k] / coef[k].max(), np.abs(C[:, k]) / np.abs(C[:, k]).max(), atol=1e-8)
 
 # %% [markdown]
 # ## Registration: why flips and handedness matter
@@ -98,8 +104,10 @@ for k in range(K):
 
 # %%
 Qs = Rotation.random(K, random_state=5).as_matrix()
-R_var = [rotations_from_triplets(M_hat, G_k[k] @ Qs[k], handedness=-1 if k == 2 else 1)[0]
-         for k in range(K)]
+R_var = [
+    rotations_from_triplets(M_hat, G_k[k] @ Qs[k], handedness=-1 if k == 2 else 1)[0]
+    for k in range(K)
+]
 ref = R_var[0]
 
 
@@ -120,11 +128,21 @@ for k in (1, 2):
     a = mean_chordal(ref, plain_so3_registration(ref, R_var[k]))
     b_reg = register_rotations(ref, R_var[k], handedness="same")
     c_reg = register_rotations(ref, R_var[k], handedness="both")
-    rows.append((k + 1, a, mean_chordal(ref, b_reg[0]), mean_chordal(ref, c_reg[0]),
-                 c_reg[3], int(c_reg[2].sum())))
-    print(f"triplet {k + 1} -> 1: mean chordal distance after registration: plain SO(3) "
-          f"{a:.3f}, flips only {rows[-1][2]:.3f}, flips + handedness {rows[-1][3]:.1e} "
-          f"(mirrored={c_reg[3]}, {c_reg[2].sum()} frames flipped)")
+    rows.append(
+        (
+            k + 1,
+            a,
+            mean_chordal(ref, b_reg[0]),
+            mean_chordal(ref, c_reg[0]),
+            c_reg[3],
+            int(c_reg[2].sum()),
+        )
+    )
+    print(
+        f"triplet {k + 1} -> 1: mean chordal distance after registration: plain SO(3) "
+        f"{a:.3f}, flips only {rows[-1][2]:.3f}, flips + handedness {rows[-1][3]:.1e} "
+        f"(mirrored={c_reg[3]}, {c_reg[2].sum()} frames flipped)"
+    )
 # plain SO(3) Procrustes leaves the triplets far apart; the flip-aware registration aligns them
 for _, plain, same, both, _, n_flipped in rows:
     assert plain > 0.5 and same < 1e-6 and both < 1e-6 and n_flipped > 0
@@ -139,12 +157,13 @@ for _, plain, same, both, _, n_flipped in rows:
 # cannot resolve).
 
 # %%
-R2 = R_k[1]                                      # triplet 2: flipped where c_f2 < 0
+R2 = R_k[1]  # triplet 2: flipped where c_f2 < 0
 fixed, flipped = resolve_depth_signs(R2)
 agree = np.einsum("fij,fij->f", fixed[:, :2], R_gt[:, :2])
 consistent = np.all(agree > 0) or np.all(agree < 0)
-print(f"{flipped.sum()} frames flipped; consistent with the truth up to one global sign: "
-      f"{consistent}")
+print(
+    f"{flipped.sum()} frames flipped; consistent with the truth up to one global sign: {consistent}"
+)
 assert consistent
 
 # %% [markdown]
@@ -167,7 +186,7 @@ for delta in (0.02, 0.05, 0.1):
     print(f"reference triplet, delta {delta:4.2f}: kept {kept.mean():6.1%} of the samples")
 print(f"the stage (L1 average, delta 0.05): kept {rn.kept.mean():6.1%} of the samples")
 kept_a, dist_a = filter_rotations(rn.registered, rn.registered[0], delta=0.05)
-assert kept_a[0].all()                       # the reference is always kept
+assert kept_a[0].all()  # the reference is always kept
 assert np.allclose(dist_a, rotation_angle(rn.registered, rn.registered[0][None]))
 fig, ax = plt.subplots(figsize=(6, 3))
 for k in range(1, rn.n_triplets):
@@ -201,9 +220,11 @@ for label, s in cases:
         secs = time.perf_counter() - t0
         e = nrsfm.rotation_error(rr_.rotations, s.rotations)
         results[label, method] = e
-        print(f"{label:20s} {method:8s} e_R {e:.4f}  {rr_.n_triplets:2d} triplet(s), kept "
-              f"{rr_.kept.mean():6.1%}  {secs:5.2f} s  mirrored triplets "
-              f"{int(rr_.mirrored.sum())}")
+        print(
+            f"{label:20s} {method:8s} e_R {e:.4f}  {rr_.n_triplets:2d} triplet(s), kept "
+            f"{rr_.kept.mean():6.1%}  {secs:5.2f} s  mirrored triplets "
+            f"{int(rr_.mirrored.sum())}"
+        )
 assert results["synthetic 3% noise", "organic"] < 0.12
 if ("pickup", "organic") in results:
     for m in ("ours", "BMM"):

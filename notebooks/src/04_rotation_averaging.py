@@ -48,6 +48,7 @@ def chordal_mean(samples, mask=None):
     w = np.ones(samples.shape[:2]) if mask is None else np.asarray(mask, float)
     return project_to_so3(np.einsum("mf,mfij->fij", w, samples) / w.sum(axis=0)[:, None, None])
 
+
 # %% [markdown]
 # ## Projection onto SO(3)
 #
@@ -95,15 +96,30 @@ for frac in fractions:
     def l1_cost(R):
         return float(rotation_angle(S, R[None]).sum(axis=0).mean())
 
-    table.append(dict(frac=frac, L1=err(L1), start=err(start), L2=err(L2),
-                      cost_L1=l1_cost(L1), cost_start=l1_cost(start), cost_L2=l1_cost(L2),
-                      iters=info["iterations"].mean(), conv=info["converged"].mean(), secs=secs))
-print(f"{'outliers':>8s} | {'L1 (Alg.1)':>10s} {'median start':>12s} {'chordal L2':>10s} deg | "
-      f"{'L1 cost: Alg.1':>14s} {'start':>7s} {'L2':>7s} | iters  s")
+    table.append(
+        dict(
+            frac=frac,
+            L1=err(L1),
+            start=err(start),
+            L2=err(L2),
+            cost_L1=l1_cost(L1),
+            cost_start=l1_cost(start),
+            cost_L2=l1_cost(L2),
+            iters=info["iterations"].mean(),
+            conv=info["converged"].mean(),
+            secs=secs,
+        )
+    )
+print(
+    f"{'outliers':>8s} | {'L1 (Alg.1)':>10s} {'median start':>12s} {'chordal L2':>10s} deg | "
+    f"{'L1 cost: Alg.1':>14s} {'start':>7s} {'L2':>7s} | iters  s"
+)
 for r in table:
-    print(f"{r['frac']:8.2f} | {r['L1']:10.3f} {r['start']:12.3f} {r['L2']:10.3f}     | "
-          f"{r['cost_L1']:14.4f} {r['cost_start']:7.4f} {r['cost_L2']:7.4f} | {r['iters']:5.2f} "
-          f"{r['secs']:.3f}")
+    print(
+        f"{r['frac']:8.2f} | {r['L1']:10.3f} {r['start']:12.3f} {r['L2']:10.3f}     | "
+        f"{r['cost_L1']:14.4f} {r['cost_start']:7.4f} {r['cost_L2']:7.4f} | {r['iters']:5.2f} "
+        f"{r['secs']:.3f}"
+    )
 
 # %% [markdown]
 # Read the table (the cell below states its key numbers): without outliers all three agree
@@ -115,15 +131,21 @@ for r in table:
 
 # %%
 by = {r["frac"]: r for r in table}
-print(f"no outliers: L1 {by[0.0]['L1']:.2f}, median start {by[0.0]['start']:.2f}, chordal L2 "
-      f"{by[0.0]['L2']:.2f} deg (noise: 2 deg per axis)")
+print(
+    f"no outliers: L1 {by[0.0]['L1']:.2f}, median start {by[0.0]['start']:.2f}, chordal L2 "
+    f"{by[0.0]['L2']:.2f} deg (noise: 2 deg per axis)"
+)
 for frac in (0.25, 0.4):
-    print(f"{frac:.0%} outliers: L1 {by[frac]['L1']:.2f} deg, chordal L2 {by[frac]['L2']:.2f} "
-          f"deg ({by[frac]['L2'] / by[frac]['L1']:.1f} x the L1 error)")
+    print(
+        f"{frac:.0%} outliers: L1 {by[frac]['L1']:.2f} deg, chordal L2 {by[frac]['L2']:.2f} "
+        f"deg ({by[frac]['L2'] / by[frac]['L1']:.1f} x the L1 error)"
+    )
 iters = [r["iters"] for r in table]
-print(f"Algorithm 1: {min(iters):.1f} to {max(iters):.1f} iterations per frame (mean over "
-      f"frames) across the outlier fractions; every frame converged: "
-      f"{all(r['conv'] == 1.0 for r in table)}")
+print(
+    f"Algorithm 1: {min(iters):.1f} to {max(iters):.1f} iterations per frame (mean over "
+    f"frames) across the outlier fractions; every frame converged: "
+    f"{all(r['conv'] == 1.0 for r in table)}"
+)
 assert by[0.0]["L1"] < 1.5 and by[0.0]["L2"] < 1.5
 for frac in (0.1, 0.25, 0.4):
     assert by[frac]["L1"] < 0.5 * by[frac]["L2"], frac
@@ -132,8 +154,11 @@ for r in table:
     assert r["cost_L1"] <= r["cost_start"] + 1e-9 and r["cost_L1"] <= r["cost_L2"] + 1e-9
     assert r["conv"] == 1.0 and r["iters"] < 10
 fig, ax = plt.subplots(figsize=(5, 3.2))
-for key, lab in (("L1", "L1, Algorithm 1"), ("start", "median start (Eq. 6)"),
-                 ("L2", "chordal L2 mean")):
+for key, lab in (
+    ("L1", "L1, Algorithm 1"),
+    ("start", "median start (Eq. 6)"),
+    ("L2", "chordal L2 mean"),
+):
     ax.plot(fractions, [r[key] for r in table], "o-", label=lab)
 ax.set_xlabel("fraction of outlier samples")
 ax.set_ylabel("mean error (deg)")
@@ -159,9 +184,11 @@ seq = data_tools.default_sequence()
 result = nrsfm.reconstruct(seq.W, seq.K)
 rs = result.rotation_stage
 assert np.allclose(average_rotations(rs.registered, rs.kept), rs.averaged, atol=1e-12)
-print(f"synthetic: method {result.method}, {rs.n_triplets} triplets, kept "
-      f"{rs.kept.mean():.0%} of the samples, e_R {result.errors(rotations_gt=seq.rotations)['e_R']:.1e}")
-assert result.errors(rotations_gt=seq.rotations)["e_R"] < 1e-5      # noise-free: near rounding
+print(
+    f"synthetic: method {result.method}, {rs.n_triplets} triplets, kept "
+    f"{rs.kept.mean():.0%} of the samples, e_R {result.errors(rotations_gt=seq.rotations)['e_R']:.1e}"
+)
+assert result.errors(rotations_gt=seq.rotations)["e_R"] < 1e-5  # noise-free: near rounding
 
 
 def e_R_of(R, gt):
@@ -173,12 +200,15 @@ if os.environ.get("NRSFM_DATA"):
     res_p = nrsfm.reconstruct(pickup.W, pickup.K)
     rp = res_p.rotation_stage
     assert np.allclose(average_rotations(rp.registered, rp.kept), rp.averaged, atol=1e-12)
-    rows = {"reference triplet only": e_R_of(rp.registered[0], pickup.rotations),
-            "L1, kept samples (pipeline)": e_R_of(average_rotations(rp.registered, rp.kept),
-                                                 pickup.rotations),
-            "L2, kept samples": e_R_of(chordal_mean(rp.registered, rp.kept), pickup.rotations),
-            "L1, all samples": e_R_of(average_rotations(rp.registered), pickup.rotations),
-            "L2, all samples": e_R_of(chordal_mean(rp.registered), pickup.rotations)}
+    rows = {
+        "reference triplet only": e_R_of(rp.registered[0], pickup.rotations),
+        "L1, kept samples (pipeline)": e_R_of(
+            average_rotations(rp.registered, rp.kept), pickup.rotations
+        ),
+        "L2, kept samples": e_R_of(chordal_mean(rp.registered, rp.kept), pickup.rotations),
+        "L1, all samples": e_R_of(average_rotations(rp.registered), pickup.rotations),
+        "L2, all samples": e_R_of(chordal_mean(rp.registered), pickup.rotations),
+    }
     print(f"pickup ({res_p.method}, kept {rp.kept.mean():.0%} of {rp.kept.size} samples):")
     for k, v in rows.items():
         print(f"  e_R {v:.4f}  {k}")
@@ -205,15 +235,20 @@ for s_ in range(4):
     sq = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.10, seed=30 + s_)
     org = nrsfm.reconstruct(sq.W, sq.K, seed=s_)
     bmm = nrsfm.reconstruct(sq.W, sq.K, method="bmm", seed=s_)
-    rows_noise.append((nrsfm.rotation_error(bmm.rotations, sq.rotations),
-                       nrsfm.rotation_error(org.rotations, sq.rotations)))
+    rows_noise.append(
+        (
+            nrsfm.rotation_error(bmm.rotations, sq.rotations),
+            nrsfm.rotation_error(org.rotations, sq.rotations),
+        )
+    )
 rows_noise = np.array(rows_noise)
-for name, col in zip(("bmm (single triplet)", "organic (L1 average of window samples)"),
-                     rows_noise.T):
+for name, col in zip(
+    ("bmm (single triplet)", "organic (L1 average of window samples)"), rows_noise.T
+):
     print(f"  e_R {col.mean():.4f}  {name}   per seed {np.array2string(col, precision=4)}")
 ratio = rows_noise[:, 1].mean() / rows_noise[:, 0].mean()
 print(f"organic / bmm: {ratio:.3f}")
-assert abs(ratio - 1) < 0.1                  # the average neither helps nor hurts much here
+assert abs(ratio - 1) < 0.1  # the average neither helps nor hurts much here
 
 # %% [markdown]
 # ## Recording
@@ -228,16 +263,22 @@ rec = build_recording(result, seq, application_id="nrsfm", recording_id="04_rota
 S, outlier = samples_at[0.25]
 n_show = 60
 frames = rr.TimeColumn("demo_frame", sequence=np.arange(n_show))
-vec = S[:, :n_show, 2].transpose(1, 0, 2).reshape(-1, 3)             # viewing direction r3
+vec = S[:, :n_show, 2].transpose(1, 0, 2).reshape(-1, 3)  # viewing direction r3
 col = np.where(outlier[:, :n_show].T.reshape(-1, 1), [[230, 50, 50, 255]], [[150, 150, 150, 255]])
-rec.send_columns("/outlier_demo/samples", indexes=[frames],
-                 columns=rr.Arrows3D.columns(vectors=vec, colors=col.astype(np.uint8))
-                 .partition([m] * n_show))
+rec.send_columns(
+    "/outlier_demo/samples",
+    indexes=[frames],
+    columns=rr.Arrows3D.columns(vectors=vec, colors=col.astype(np.uint8)).partition([m] * n_show),
+)
 for name, R in (("truth", truth), ("L1", average_rotations(S)), ("L2", chordal_mean(S))):
-    rec.send_columns(f"/outlier_demo/{name}", indexes=[frames],
-                     columns=rr.Transform3D.columns(mat3x3=R[:n_show].transpose(0, 2, 1)))
-    rec.log(f"/outlier_demo/{name}", rr.TransformAxes3D(1.2 if name == "truth" else 1.0),
-            static=True)
+    rec.send_columns(
+        f"/outlier_demo/{name}",
+        indexes=[frames],
+        columns=rr.Transform3D.columns(mat3x3=R[:n_show].transpose(0, 2, 1)),
+    )
+    rec.log(
+        f"/outlier_demo/{name}", rr.TransformAxes3D(1.2 if name == "truth" else 1.0), static=True
+    )
 path = output_path("04_rotation_averaging.rrd")
 rec.save(path)
 rec.flush()

@@ -67,14 +67,17 @@ from nrsfm.stages.shape.admm import AdmmSettings, admm_iterations, psvt, shape_w
 seq = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.02, seed=7)
 F, P, K = seq.n_frames, seq.n_points, seq.K
 X_init = pseudo_inverse_shapes(seq.W, seq.rotations)
-per_frame_sv = np.linalg.svd(X_init, compute_uv=False)          # (F, 3)
-print("max over frames of sigma_3(X_init_f) / sigma_1 :", (per_frame_sv[:, 2] / per_frame_sv[:, 0]).max())
+per_frame_sv = np.linalg.svd(X_init, compute_uv=False)  # (F, 3)
+print(
+    "max over frames of sigma_3(X_init_f) / sigma_1 :",
+    (per_frame_sv[:, 2] / per_frame_sv[:, 0]).max(),
+)
 assert (per_frame_sv[:, 2] / per_frame_sv[:, 0]).max() < 1e-12
 sigma = np.linalg.svd(phi(X_init), compute_uv=False)
 theta = shape_weights(sigma)
 print("sigma(X_init#)[:6] =", np.round(sigma[:6], 3))
 print("theta[:6]          =", np.round(theta[:6], 5))
-assert np.all(np.diff(theta) >= 0)                              # weights grow as sigma falls
+assert np.all(np.diff(theta) >= 0)  # weights grow as sigma falls
 assert np.isclose(theta[0], 5e-3 * np.sqrt(sigma[0]) / (sigma[0] + 1e-6))
 
 # %% [markdown]
@@ -103,17 +106,20 @@ for N in (0, 1, 3):
 
 # %%
 t0 = time.perf_counter()
-organic = nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations,
-                            shape_solver="admm")
+organic = nrsfm.reconstruct(
+    seq.W, K, method="organic", rotations=seq.rotations, shape_solver="admm"
+)
 print(f"{time.perf_counter() - t0:.2f} s")
 st = organic.shape_stage
 h = st.history
-print(f"prior {st.prior}, N = {st.N}, {st.n_iter} iterations, converged {st.converged}, "
-      f"final residual {h['residual'][-1]:.1e}")
+print(
+    f"prior {st.prior}, N = {st.N}, {st.n_iter} iterations, converged {st.converged}, "
+    f"final residual {h['residual'][-1]:.1e}"
+)
 assert len(h["cost"]) == len(h["rho"]) == st.n_iter
 assert np.allclose(h["rho"], 1e-4 * 1.1 ** np.arange(st.n_iter), rtol=1e-9)
 assert st.converged and h["residual"][-1] < 1e-10
-assert st.n_iter < 339                           # the rho schedule alone would stop at 339
+assert st.n_iter < 339  # the rho schedule alone would stop at 339
 
 # %% [markdown]
 # ## Three priors, same rotations
@@ -128,18 +134,20 @@ assert st.n_iter < 339                           # the rho schedule alone would 
 # %%
 runs = {"organic": organic}
 for m in ("wnn", "bmm"):
-    runs[m] = nrsfm.reconstruct(seq.W, K, method=m, rotations=seq.rotations,
-                                shape_solver="admm")
-runs["pseudo_inverse"] = nrsfm.reconstruct(seq.W, K, method="pseudo_inverse",
-                                           rotations=seq.rotations)   # its own shape stage
+    runs[m] = nrsfm.reconstruct(seq.W, K, method=m, rotations=seq.rotations, shape_solver="admm")
+runs["pseudo_inverse"] = nrsfm.reconstruct(
+    seq.W, K, method="pseudo_inverse", rotations=seq.rotations
+)  # its own shape stage
 e3d = {m: r.errors(seq.shapes)["e3d"] for m, r in runs.items()}
 for m, e in e3d.items():
     print(f"{m:15s} e3d {e:.4f}")
 assert e3d["organic"] < 0.03 and e3d["wnn"] < 0.03
 assert e3d["organic"] <= e3d["wnn"] * 1.05
 assert e3d["bmm"] > 1.2 * e3d["organic"] and e3d["pseudo_inverse"] > 10 * e3d["organic"]
-figures.admm_figure([runs[m] for m in ("organic", "wnn", "bmm")],
-                    [f"{m}: e3d {e3d[m]:.3g}" for m in ("organic", "wnn", "bmm")])
+figures.admm_figure(
+    [runs[m] for m in ("organic", "wnn", "bmm")],
+    [f"{m}: e3d {e3d[m]:.3g}" for m in ("organic", "wnn", "bmm")],
+)
 plt.show()
 
 # %% [markdown]
@@ -158,16 +166,25 @@ plt.show()
 # solver stops at its answer instead (one answer under units, `docs/studies/shape.md`).
 
 # %%
-by_scale = {c: nrsfm.e3d(admm_iterations(c * seq.W, seq.rotations, K, "organic", AdmmSettings()).shapes, seq.shapes)
-            for c in (0.1, 1.0, 10.0)}
+by_scale = {
+    c: nrsfm.e3d(
+        admm_iterations(c * seq.W, seq.rotations, K, "organic", AdmmSettings()).shapes, seq.shapes
+    )
+    for c in (0.1, 1.0, 10.0)
+}
 print("e3d of admm_iterations(c * W):", {c: round(e, 4) for c, e in by_scale.items()})
-print(f"reconstruct runs the stage on W / {organic.scale:.3g} (Frobenius norm 170): "
-      f"e3d {e3d['organic']:.4f}")
+print(
+    f"reconstruct runs the stage on W / {organic.scale:.3g} (Frobenius norm 170): "
+    f"e3d {e3d['organic']:.4f}"
+)
 assert by_scale[10.0] > 10 * by_scale[1.0]
-scaled_run = nrsfm.reconstruct(10 * seq.W, K, method="organic", rotations=seq.rotations,
-                               shape_solver="admm")
-print(f"reconstruct(10 W): e3d {scaled_run.errors(seq.shapes)['e3d']:.4f}, "
-      f"{scaled_run.shape_stage.n_iter} iterations ({organic.shape_stage.n_iter} for W)")
+scaled_run = nrsfm.reconstruct(
+    10 * seq.W, K, method="organic", rotations=seq.rotations, shape_solver="admm"
+)
+print(
+    f"reconstruct(10 W): e3d {scaled_run.errors(seq.shapes)['e3d']:.4f}, "
+    f"{scaled_run.shape_stage.n_iter} iterations ({organic.shape_stage.n_iter} for W)"
+)
 assert np.isclose(scaled_run.errors(seq.shapes)["e3d"], e3d["organic"], rtol=1e-2)
 
 # %% [markdown]
@@ -182,9 +199,12 @@ assert np.isclose(scaled_run.errors(seq.shapes)["e3d"], e3d["organic"], rtol=1e-
 
 # %%
 Ns = [0, 1, 2, 3, 4, 5]
-abl = [nrsfm.reconstruct(seq.W, K, rotations=seq.rotations,
-                         settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))
-                         ).errors(seq.shapes)["e3d"] for N in Ns]
+abl = [
+    nrsfm.reconstruct(
+        seq.W, K, rotations=seq.rotations, settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))
+    ).errors(seq.shapes)["e3d"]
+    for N in Ns
+]
 print("synthetic e3d by N:", dict(zip(Ns, np.round(abl, 4))))
 assert max(abl[:4]) < 0.03 and min(abl[4:]) > 0.1
 
@@ -192,9 +212,15 @@ abl_m = None
 if os.environ.get("NRSFM_DATA"):
     pickup = data_tools.load_mocap("pickup")
     Ns_m = [0, 1, 2, 3, 5]
-    abl_m = [nrsfm.reconstruct(pickup.W, pickup.K, rotations=pickup.rotations,
-                               settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N))
-                               ).errors(pickup.shapes)["e3d"] for N in Ns_m]
+    abl_m = [
+        nrsfm.reconstruct(
+            pickup.W,
+            pickup.K,
+            rotations=pickup.rotations,
+            settings=nrsfm.Settings(shape=nrsfm.AdmmSettings(N=N)),
+        ).errors(pickup.shapes)["e3d"]
+        for N in Ns_m
+    ]
     print("pickup e3d by N:", dict(zip(Ns_m, np.round(abl_m, 4))))
     assert abs(abl_m[1] - 0.014) < 0.002 and abl_m[-1] > 0.1
 fig, ax = plt.subplots(figsize=(5, 3))
@@ -223,9 +249,13 @@ exact = {}
 for K_ in (1, 2, 4, 8):
     for motion in ("smooth", "random"):
         s_ = data_tools.make_synthetic(F=60, P=3 * K_ + 2, K=K_, motion=motion, seed=30 + K_)
-        row = [nrsfm.e3d(nrsfm.reconstruct(s_.W, K_, rotations=s_.rotations,
-                                           shape_solver=sv).shapes, s_.shapes)
-               for sv in ("admm", "bilinear")]
+        row = [
+            nrsfm.e3d(
+                nrsfm.reconstruct(s_.W, K_, rotations=s_.rotations, shape_solver=sv).shapes,
+                s_.shapes,
+            )
+            for sv in ("admm", "bilinear")
+        ]
         row.append(nrsfm.e3d(closed_form_shapes(s_.W, s_.rotations, K_), s_.shapes))
         exact[(K_, motion)] = row
 print(f"{'K':>2s} {'motion':8s} {'admm':>9s} {'bilinear':>9s} {'closed':>9s}")
@@ -243,11 +273,14 @@ assert max(r[0] for r in exact.values()) > 100 * max(r[1] for r in exact.values(
 # measure it stops on (`gtol`, default $10^{-8}$). Same noisy sequence as above.
 
 # %%
-bil = nrsfm.reconstruct(seq.W, K, method="organic", rotations=seq.rotations,
-                        shape_solver="bilinear")
+bil = nrsfm.reconstruct(
+    seq.W, K, method="organic", rotations=seq.rotations, shape_solver="bilinear"
+)
 bs = bil.shape_stage
-print(f"bilinear: {bs.n_iter} iterations, objective {bs.objective:.6g}, relative gradient "
-      f"{bs.grad_norm:.1e}, converged {bs.converged}; mu = {bs.mu:.3g} (noise {bs.noise:.3g})")
+print(
+    f"bilinear: {bs.n_iter} iterations, objective {bs.objective:.6g}, relative gradient "
+    f"{bs.grad_norm:.1e}, converged {bs.converged}; mu = {bs.mu:.3g} (noise {bs.noise:.3g})"
+)
 print(f"bilinear objective = its weighted-nuclear-norm form: {bs.wnn_objective:.6g}")
 print(f"e3d: admm {e3d['organic']:.4f}, bilinear {bil.errors(seq.shapes)['e3d']:.4f}")
 assert bs.converged and bs.grad_norm <= 1e-6
@@ -283,21 +316,29 @@ targets = (10, 50, 170, 500, 2000)
 by_target = {}
 for t in targets:
     Wt = s2.W * t / np.linalg.norm(s2.W)
-    by_target[t] = [nrsfm.e3d(admm_iterations(Wt, s2.rotations, 2, "organic", AdmmSettings()).shapes, s2.shapes),
-                    nrsfm.e3d(solve_bilinear(Wt, s2.rotations, 2, "organic").shapes, s2.shapes)]
+    by_target[t] = [
+        nrsfm.e3d(
+            admm_iterations(Wt, s2.rotations, 2, "organic", AdmmSettings()).shapes, s2.shapes
+        ),
+        nrsfm.e3d(solve_bilinear(Wt, s2.rotations, 2, "organic").shapes, s2.shapes),
+    ]
 print("||W||_F   admm      bilinear")
 for t, (a_, b_) in by_target.items():
     print(f"{t:7d} {a_:9.1e} {b_:9.1e}")
 assert max(v[1] for v in by_target.values()) < 1e-10
 assert by_target[2000][0] > 0.1
 
-rms = float(np.sqrt(np.mean(seq.W ** 2)))
+rms = float(np.sqrt(np.mean(seq.W**2)))
 draws = {"admm": [], "bilinear": []}
 for d in range(1, 5):
     Wd = seq.W + 1e-7 * rms * np.random.default_rng(d).standard_normal(seq.W.shape)
     for sv in draws:
-        draws[sv].append(nrsfm.e3d(nrsfm.reconstruct(Wd, K, rotations=seq.rotations,
-                                                     shape_solver=sv).shapes, seq.shapes))
+        draws[sv].append(
+            nrsfm.e3d(
+                nrsfm.reconstruct(Wd, K, rotations=seq.rotations, shape_solver=sv).shapes,
+                seq.shapes,
+            )
+        )
 spread = {sv: (max(v) - min(v)) / min(v) for sv, v in draws.items()}
 for sv, v in draws.items():
     print(f"{sv:9s} e3d over 4 perturbed draws {np.round(v, 5)}, spread {100 * spread[sv]:.3f} %")

@@ -70,7 +70,7 @@ print("paper e3d (ours):", PAPER_E3D)
 rows = {}
 results = {}
 t_start = time.perf_counter()
-for name in (data_tools.MOCAP_NAMES if HAVE_DATA else ()):
+for name in data_tools.MOCAP_NAMES if HAVE_DATA else ():
     spent = time.perf_counter() - t_start
     if spent > BUDGET:
         rows[name] = dict(status=f"not run: budget {BUDGET:.0f} s spent")
@@ -92,8 +92,9 @@ for name in (data_tools.MOCAP_NAMES if HAVE_DATA else ()):
         res_gt = nrsfm.reconstruct(seq.W, seq.K, rotations=seq.rotations)
         row["t_gt"] = time.perf_counter() - t0
         row["e3d_gtR"] = res_gt.errors(seq.shapes)["e3d"]
-        row["pi_gtR"] = nrsfm.reconstruct(seq.W, seq.K, method="pseudo_inverse",
-                                          rotations=seq.rotations).errors(seq.shapes)["e3d"]
+        row["pi_gtR"] = nrsfm.reconstruct(
+            seq.W, seq.K, method="pseudo_inverse", rotations=seq.rotations
+        ).errors(seq.shapes)["e3d"]
     rows[name] = row
     print(f"{name:8s} done at {time.perf_counter() - t_start:6.1f} s")
 total = time.perf_counter() - t_start
@@ -103,19 +104,23 @@ def fmt(v, spec=".4f"):
     return "-" if v is None else format(v, spec)
 
 
-header = (f"{'seq':8s} {'F':>5s} {'K':>3s} | {'e3d':>7s} {'paper':>7s} | {'bmm':>7s} "
-          f"{'paper':>7s} | {'e_R':>7s} "
-          f"{'paper':>7s} | {'e3d|GT R':>8s} {'PI|GT R':>8s} {'paper PI':>8s} | {'s':>5s}  status")
+header = (
+    f"{'seq':8s} {'F':>5s} {'K':>3s} | {'e3d':>7s} {'paper':>7s} | {'bmm':>7s} "
+    f"{'paper':>7s} | {'e_R':>7s} "
+    f"{'paper':>7s} | {'e3d|GT R':>8s} {'PI|GT R':>8s} {'paper PI':>8s} | {'s':>5s}  status"
+)
 print(header)
 print("-" * len(header))
 for name, r in rows.items():
     secs = (r.get("t_full") or 0) + (r.get("t_gt") or 0)
-    print(f"{name:8s} {r.get('F', 0):5d} {r.get('K', 0):3d} | {fmt(r.get('e3d')):>7s} "
-          f"{fmt(PAPER_E3D.get(name)):>7s} | {fmt(r.get('e3d_bmm')):>7s} "
-          f"{fmt(PAPER_BMM.get(name)):>7s} | {fmt(r.get('e_R')):>7s} "
-          f"{fmt(PAPER_ER.get(name)):>7s} | {fmt(r.get('e3d_gtR')):>8s} "
-          f"{fmt(r.get('pi_gtR')):>8s} {fmt(PAPER_PI.get(name)):>8s} | {secs:5.1f}  "
-          f"{r['status']}")
+    print(
+        f"{name:8s} {r.get('F', 0):5d} {r.get('K', 0):3d} | {fmt(r.get('e3d')):>7s} "
+        f"{fmt(PAPER_E3D.get(name)):>7s} | {fmt(r.get('e3d_bmm')):>7s} "
+        f"{fmt(PAPER_BMM.get(name)):>7s} | {fmt(r.get('e_R')):>7s} "
+        f"{fmt(PAPER_ER.get(name)):>7s} | {fmt(r.get('e3d_gtR')):>8s} "
+        f"{fmt(r.get('pi_gtR')):>8s} {fmt(PAPER_PI.get(name)):>8s} | {secs:5.1f}  "
+        f"{r['status']}"
+    )
 print(f"total {total:.1f} s")
 
 # %% [markdown]
@@ -137,8 +142,10 @@ print(f"total {total:.1f} s")
 REF_GT_R = {"drink": 0.0074, "pickup": 0.0131, "yoga": 0.0129, "stretch": 0.0152}
 for name, r in rows.items():
     if r.get("e3d_gtR") is not None and name in REF_GT_R:
-        print(f"{name:8s} organic | GT R {r['e3d_gtR']:.4f}, reference {REF_GT_R[name]:.4f} "
-              f"({100 * (r['e3d_gtR'] / REF_GT_R[name] - 1):+.1f} %)")
+        print(
+            f"{name:8s} organic | GT R {r['e3d_gtR']:.4f}, reference {REF_GT_R[name]:.4f} "
+            f"({100 * (r['e3d_gtR'] / REF_GT_R[name] - 1):+.1f} %)"
+        )
 for name, r in rows.items():
     if r.get("pi_gtR") is not None and name in ("drink", "pickup", "yoga", "stretch"):
         assert abs(r["pi_gtR"] - PAPER_PI[name]) < 5e-4, (name, r["pi_gtR"], PAPER_PI[name])
@@ -157,12 +164,14 @@ if rows:
     names = [n for n in rows if rows[n]["status"] == "run"]
     x = np.arange(len(names))
     fig, ax = plt.subplots(figsize=(9, 3.5))
-    series = [("paper: Ours", [PAPER_E3D.get(n) for n in names]),
-              ("paper: Ours shape + Dai R", [PAPER_DAI_R.get(n) for n in names]),
-              ("paper: BMM", [PAPER_BMM.get(n) for n in names]),
-              ("this code: organic", [rows[n].get("e3d") for n in names]),
-              ("this code: bmm", [rows[n].get("e3d_bmm") for n in names]),
-              ("this code: organic | GT R", [rows[n].get("e3d_gtR") for n in names])]
+    series = [
+        ("paper: Ours", [PAPER_E3D.get(n) for n in names]),
+        ("paper: Ours shape + Dai R", [PAPER_DAI_R.get(n) for n in names]),
+        ("paper: BMM", [PAPER_BMM.get(n) for n in names]),
+        ("this code: organic", [rows[n].get("e3d") for n in names]),
+        ("this code: bmm", [rows[n].get("e3d_bmm") for n in names]),
+        ("this code: organic | GT R", [rows[n].get("e3d_gtR") for n in names]),
+    ]
     w = 0.8 / len(series)
     for i, (lab, vals) in enumerate(series):
         v = np.array([np.nan if a is None else a for a in vals], float)
@@ -185,8 +194,13 @@ if rows:
 if results:
     name = max(results, key=lambda n: results[n].n_frames)
     t0 = time.perf_counter()
-    rrd = save_recording(results[name], output_path(f"06_mocap_{name}.rrd"),
-                         data_tools.load_mocap(name, data_dir=MOCAP))
-    print(f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB, "
-          f"{time.perf_counter() - t0:.1f} s)")
+    rrd = save_recording(
+        results[name],
+        output_path(f"06_mocap_{name}.rrd"),
+        data_tools.load_mocap(name, data_dir=MOCAP),
+    )
+    print(
+        f"wrote {shown_path(rrd)} ({rrd.stat().st_size / 1e6:.2f} MB, "
+        f"{time.perf_counter() - t0:.1f} s)"
+    )
     show_recording(rrd)

@@ -36,8 +36,10 @@ from IPython.display import Image, Markdown, display
 from nrsfm.experiments import EXPERIMENTS, build_plan, run_benchmark, unique_tasks
 from nrsfm.views import output_path, shown_path
 
-HAVE_DATA = bool(os.environ.get("NRSFM_DATA")) and (
-    Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()
+HAVE_DATA = (
+    bool(os.environ.get("NRSFM_DATA"))
+    and (Path(os.environ.get("NRSFM_DATA", ".")) / "mocap").is_dir()
+)
 if not HAVE_DATA:
     assert not os.environ.get("CI"), "CI must set NRSFM_DATA to the folder holding mocap/"
 SEQUENCES = ["pickup"] if HAVE_DATA else ["synthetic-3-80-30-2"]
@@ -54,8 +56,13 @@ for k, v in EXPERIMENTS.items():
 # baseline of the missing-data table, runs once).
 
 # %%
-plan = build_plan(only=ONLY, sequences=SEQUENCES, quick=True, overrides=OVERRIDES,
-                  data=Path(os.environ["NRSFM_DATA"]) / "mocap" if HAVE_DATA else None)
+plan = build_plan(
+    only=ONLY,
+    sequences=SEQUENCES,
+    quick=True,
+    overrides=OVERRIDES,
+    data=Path(os.environ["NRSFM_DATA"]) / "mocap" if HAVE_DATA else None,
+)
 for exp, tasks in plan.items():
     print(f"{exp:16s} {len(tasks):3d} tasks, e.g. {tasks[0]}")
 print("unique tasks:", len(unique_tasks(plan)))
@@ -67,13 +74,30 @@ print("unique tasks:", len(unique_tasks(plan)))
 
 # %%
 t0 = time.perf_counter()
-res = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY, sequences=SEQUENCES,
-                    quick=True, workers=2, progress=False, overrides=OVERRIDES)
-print(f"{res['n_tasks']} tasks, {res['n_cached']} cached, {time.perf_counter() - t0:.1f} s;"
-      f" wrote {len(res['files'])} files to {shown_path(OUT)}")
-again = run_benchmark(OUT, data=os.environ.get("NRSFM_DATA"), only=ONLY,
-                      sequences=SEQUENCES, quick=True, workers=1, progress=False,
-                      overrides=OVERRIDES)
+res = run_benchmark(
+    OUT,
+    data=os.environ.get("NRSFM_DATA"),
+    only=ONLY,
+    sequences=SEQUENCES,
+    quick=True,
+    workers=2,
+    progress=False,
+    overrides=OVERRIDES,
+)
+print(
+    f"{res['n_tasks']} tasks, {res['n_cached']} cached, {time.perf_counter() - t0:.1f} s;"
+    f" wrote {len(res['files'])} files to {shown_path(OUT)}"
+)
+again = run_benchmark(
+    OUT,
+    data=os.environ.get("NRSFM_DATA"),
+    only=ONLY,
+    sequences=SEQUENCES,
+    quick=True,
+    workers=1,
+    progress=False,
+    overrides=OVERRIDES,
+)
 assert again["n_cached"] == again["n_tasks"], "the second run must come from the cache"
 
 # %% [markdown]
@@ -98,12 +122,14 @@ missing = next(t for t in res["tables"] if t.name == "missing")
 cols = missing.columns
 for row in missing.rows:
     r = dict(zip(cols, row))
-    print(f"{r['sequence']:>10s} {r['pattern']:>8s} {r['method']:>8s}: missing "
-          f"{r['missing']:.2f}, fill error {r['fill error']:.4f}, e3d {r['e3d']:.4f} "
-          f"(complete {r['complete-data e3d']:.4f}, ratio {r['ratio']:.2f})")
-    assert r["fill error"] < 0.05         # measured: pickup 0.0065, synthetic 0.0045
+    print(
+        f"{r['sequence']:>10s} {r['pattern']:>8s} {r['method']:>8s}: missing "
+        f"{r['missing']:.2f}, fill error {r['fill error']:.4f}, e3d {r['e3d']:.4f} "
+        f"(complete {r['complete-data e3d']:.4f}, ratio {r['ratio']:.2f})"
+    )
+    assert r["fill error"] < 0.05  # measured: pickup 0.0065, synthetic 0.0045
     if HAVE_DATA and r["method"] == "organic":
-        assert r["ratio"] < 1.5           # acceptance: within 1.5x (measured 1.03)
+        assert r["ratio"] < 1.5  # acceptance: within 1.5x (measured 1.03)
 
 # %% [markdown]
 # ## N ablation (Fig. 3d)

@@ -33,8 +33,13 @@ from data_tools.synthetic_video import make_video, tracking_errors
 from data_tools.video import track_dense, track_sparse
 from nrsfm.published import published_value
 from nrsfm.tracks import reconstruct_tracks
-from nrsfm.views import (make_video_blueprint, output_path, save_video_recording,
-                         show_recording, shown_path)
+from nrsfm.views import (
+    make_video_blueprint,
+    output_path,
+    save_video_recording,
+    show_recording,
+    shown_path,
+)
 
 # %% [markdown]
 # ## The video
@@ -44,8 +49,14 @@ from nrsfm.views import (make_video_blueprint, output_path, save_video_recording
 
 # %%
 video = make_video("face", n_frames=40, size=(240, 320), grid=41, seed=0)
-print(video.frames.shape, "mesh:", video.vertices.shape[2], "vertices,",
-      len(video.triangles), "triangles")
+print(
+    video.frames.shape,
+    "mesh:",
+    video.vertices.shape[2],
+    "vertices,",
+    len(video.triangles),
+    "triangles",
+)
 fig, axes = plt.subplots(1, 3, figsize=(12, 3.2))
 for ax, f in zip(axes, (0, 20, 39)):
     ax.imshow(video.frames[f][:, :, ::-1])
@@ -79,7 +90,7 @@ print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in rep_s.items()
 # drift; `n_swapped_kept` those still in the output while off.
 
 # %%
-assert rep_s["error_median"] < 1.0          # sub-pixel (the median is printed above)
+assert rep_s["error_median"] < 1.0  # sub-pixel (the median is printed above)
 assert np.isnan(sparse.tracks[:, :, ~sparse.complete]).any(axis=(0, 1)).all()
 
 # %% [markdown]
@@ -117,8 +128,10 @@ for name, tracks in (("sparse", sparse), ("dense", dense)):
     dt = time.perf_counter() - t0
     e = vr.result.errors(seq.shapes[:, :, vr.used])["e3d"]
     results[name] = (seq, vr, e)
-    print(f"{name}: {vr.n_tracks} tracks, {vr.n_complete} complete, "
-          f"missing data passed: {vr.missing_data}; e3d = {e:.4f} ({dt:.1f} s)")
+    print(
+        f"{name}: {vr.n_tracks} tracks, {vr.n_complete} complete, "
+        f"missing data passed: {vr.missing_data}; e3d = {e:.4f} ({dt:.1f} s)"
+    )
 
 # %% [markdown]
 # The paper's dense experiments (Garg et al.'s synthetic faces, $K=1$; its figures are
@@ -154,9 +167,18 @@ seq, vr, _ = results["dense"]
 used = np.zeros(dense.n_points, bool)
 used[np.flatnonzero(seq.extra["valid"])[vr.used]] = True
 path = output_path("08_video_to_3d.rrd")
-info = save_video_recording(path, video.frames, dense, vr.result, used,
-                            shapes_gt=seq.shapes[:, :, vr.used], max_points_3d=3000)
-print(f"{shown_path(info['path'])}: {info['bytes'] / 1e6:.2f} MB, {info['seconds']:.2f} s, "
-      f"{info['points_3d']} points in 3D, {info['points_2d']} tracks drawn")
+info = save_video_recording(
+    path,
+    video.frames,
+    dense,
+    vr.result,
+    used,
+    shapes_gt=seq.shapes[:, :, vr.used],
+    max_points_3d=3000,
+)
+print(
+    f"{shown_path(info['path'])}: {info['bytes'] / 1e6:.2f} MB, {info['seconds']:.2f} s, "
+    f"{info['points_3d']} points in 3D, {info['points_2d']} tracks drawn"
+)
 assert info["bytes"] < 5e6
 show_recording(path, blueprint=make_video_blueprint(True))

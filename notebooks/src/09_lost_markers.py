@@ -55,14 +55,18 @@ HAVE_DATA = MOCAP is not None and (MOCAP / "pickup.mat").is_file()
 if HAVE_DATA:
     seq = data_tools.load_mocap("pickup", data_dir=MOCAP)
 else:
-    print("no MoCap data (set NRSFM_DATA to the folder holding mocap/): a synthetic "
-          "sequence instead (a random shape basis, without the rigid parts the neighbour "
-          "fills are made for)")
+    print(
+        "no MoCap data (set NRSFM_DATA to the folder holding mocap/): a synthetic "
+        "sequence instead (a random shape basis, without the rigid parts the neighbour "
+        "fills are made for)"
+    )
     seq = data_tools.make_synthetic(F=200, P=41, K=3, motion="smooth", seed=1)
 W, observed = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
 lost = np.flatnonzero(~observed.all(axis=0))
-print(f"{seq.name}: F = {observed.shape[0]}, P = {observed.shape[1]}, K = {seq.K}; "
-      f"{lost.size} markers lost, {100 * (1 - observed.mean()):.1f} % of the entries missing")
+print(
+    f"{seq.name}: F = {observed.shape[0]}, P = {observed.shape[1]}, K = {seq.K}; "
+    f"{lost.size} markers lost, {100 * (1 - observed.mean()):.1f} % of the entries missing"
+)
 
 fig, ax = plt.subplots(figsize=(10, 2.6))
 ax.imshow(observed.T, aspect="auto", cmap="gray", interpolation="nearest")
@@ -88,17 +92,24 @@ e_complete, e_lost = complete.errors(seq.shapes)["e3d"], result.errors(seq.shape
 seen_complete = e3d_seen(complete.shapes, seq.shapes, observed)
 seen_lost = e3d_seen(result.shapes, seq.shapes, observed)
 fill = lost_point_means(point_errors(result.shapes, seq.shapes), observed)[lost]
-baseline = lost_point_means(point_errors(rigid_neighbour_fill(result.shapes, observed),
-                                         seq.shapes), observed)[lost]
-print(f"e3d, all points:      complete {e_complete:.4f}, lost markers {e_lost:.4f} "
-      f"({e_lost / e_complete:.2f} x)")
-print(f"e3d, the seen points: complete {seen_complete:.4f}, lost markers {seen_lost:.4f} "
-      f"({seen_lost / seen_complete:.2f} x)")
-print(f"fill of the lost markers: mean {fill.mean():.4f}; rigid-neighbour baseline "
-      f"{baseline.mean():.4f}")
+baseline = lost_point_means(
+    point_errors(rigid_neighbour_fill(result.shapes, observed), seq.shapes), observed
+)[lost]
+print(
+    f"e3d, all points:      complete {e_complete:.4f}, lost markers {e_lost:.4f} "
+    f"({e_lost / e_complete:.2f} x)"
+)
+print(
+    f"e3d, the seen points: complete {seen_complete:.4f}, lost markers {seen_lost:.4f} "
+    f"({seen_lost / seen_complete:.2f} x)"
+)
+print(
+    f"fill of the lost markers: mean {fill.mean():.4f}; rigid-neighbour baseline "
+    f"{baseline.mean():.4f}"
+)
 if HAVE_DATA:
-    assert seen_lost < 1.3 * seen_complete        # measured 1.20 x: the seen points hold
-    assert fill.mean() < 0.15 and fill.mean() < baseline.mean()   # measured .087 / .139
+    assert seen_lost < 1.3 * seen_complete  # measured 1.20 x: the seen points hold
+    assert fill.mean() < 0.15 and fill.mean() < baseline.mean()  # measured .087 / .139
 
 # %% [markdown]
 # The points that stay visible are nearly as good as with complete data; the loss is in the
@@ -115,24 +126,34 @@ reliability = result.fill_spread[lost]
 print("marker  seen  undetermined  reliability  unreliable  fill error  baseline")
 for i, p in enumerate(lost):
     r = "-" if np.isnan(reliability[i]) else f"{reliability[i]:.3f}"
-    print(f"{p:6d} {observed[:, p].sum():5d}  {str(result.undetermined[p]):>12s}  {r:>11s}  "
-          f"{str(result.unreliable[p]):>10s}  {fill[i]:10.3f}  {baseline[i]:8.3f}")
+    print(
+        f"{p:6d} {observed[:, p].sum():5d}  {str(result.undetermined[p]):>12s}  {r:>11s}  "
+        f"{str(result.unreliable[p]):>10s}  {fill[i]:10.3f}  {baseline[i]:8.3f}"
+    )
 filled = np.isfinite(reliability)
 if filled.sum() >= 3:
     rho = spearmanr(reliability[filled], fill[filled]).correlation
-    print(f"Spearman correlation of reliability and error over the {filled.sum()} markers "
-          f"filled from their neighbours: {rho:.2f}")
+    print(
+        f"Spearman correlation of reliability and error over the {filled.sum()} markers "
+        f"filled from their neighbours: {rho:.2f}"
+    )
     if HAVE_DATA:
         assert rho > 0.5
 
 fig, ax = plt.subplots(figsize=(5.5, 4))
-ax.scatter(reliability[filled], fill[filled], c=np.where(result.unreliable[lost][filled],
-                                                        "tab:red", "tab:olive"))
+ax.scatter(
+    reliability[filled],
+    fill[filled],
+    c=np.where(result.unreliable[lost][filled], "tab:red", "tab:olive"),
+)
 ax.axvline(SPREAD_MAX, color="tab:orange", ls="--", label=f"SPREAD_MAX = {SPREAD_MAX}")
 ax.axhline(0.15, color="gray", ls=":", label="a bad fill (.15)")
 ax.axhline(0.05, color="gray", ls="-.", label="a good fill (.05)")
-ax.set(xlabel="reliability (the fills' stray from their median)", ylabel="fill error",
-       title="lost markers filled from their neighbours (red: unreliable)")
+ax.set(
+    xlabel="reliability (the fills' stray from their median)",
+    ylabel="fill error",
+    title="lost markers filled from their neighbours (red: unreliable)",
+)
 ax.legend(fontsize=8)
 plt.show()
 

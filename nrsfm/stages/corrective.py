@@ -26,8 +26,8 @@ from .relaxation import penalized_gram, triplets_from_gram
 __all__ = ["TripletSearch", "refine_triplet", "search_triplet", "triplet_cost"]
 
 
-_EPS = 1e-150   # floor of |r1|^2 (keeps |r1|^4 representable)
-LAM0 = 1e-3      # initial LM damping, times max diag(J'J)
+_EPS = 1e-150  # floor of |r1|^2 (keeps |r1|^4 representable)
+LAM0 = 1e-3  # initial LM damping, times max diag(J'J)
 
 
 class _Frames:
@@ -38,7 +38,7 @@ class _Frames:
     def __init__(self, M_hat, weights=None):
         M = np.asarray(M_hat, float)
         self.m1, self.m2 = np.ascontiguousarray(M[0::2]), np.ascontiguousarray(M[1::2])
-        self.U = np.stack([self.m1, self.m2], axis=2)[:, None]          # (F, 1, 3K, 2)
+        self.U = np.stack([self.m1, self.m2], axis=2)[:, None]  # (F, 1, 3K, 2)
         self.w = None if weights is None else np.asarray(weights, float)
         self.sqrt_w = None if weights is None else np.sqrt(self.w)
 
@@ -114,7 +114,7 @@ def _damped_step(A, D, lam, grad):
     """``-(A + lam diag(D))^-1 grad`` by one Cholesky solve (LAPACK ``posv``; A = J'J is
     positive semi-definite and D > 0), or None where rounding leaves it indefinite."""
     H = A.copy()
-    H.flat[::H.shape[0] + 1] += lam * D
+    H.flat[:: H.shape[0] + 1] += lam * D
     _, step, info = lapack.dposv(H, -grad, lower=1, overwrite_a=1)
     return step if info == 0 else None
 
@@ -153,8 +153,11 @@ def _levenberg_marquardt(G0, M, weights, max_iter, tol, lam0=LAM0, reuse=None):
             pred = -(step @ grad) - 0.5 * step @ (A @ step)
             rho = (cost - c_new) / max(2.0 * pred, 1e-300)
             done = (cost - c_new) <= tol * cost or c_new < 1e-28
-            keep = reuse is not None and (cost - c_new) <= reuse * cost and \
-                np.linalg.norm(step) <= reuse * np.linalg.norm(g_new)
+            keep = (
+                reuse is not None
+                and (cost - c_new) <= reuse * cost
+                and np.linalg.norm(step) <= reuse * np.linalg.norm(g_new)
+            )
             g, cost, r = g_new, c_new, r_new
             if keep:
                 grad = frames.gradient(p_new).ravel()
@@ -189,7 +192,7 @@ def refine_triplet(G0, M_hat, weights=None, max_iter=500, tol=1e-10, lam0=LAM0, 
     if weights is not None:
         weights = np.asarray(weights, float)
         keep = weights > 0
-        if not keep.all():                      # drop zero-weight frames outright
+        if not keep.all():  # drop zero-weight frames outright
             M = M[np.repeat(keep, 2)]
             weights = weights[keep]
     G0 = _normalise_triplet(np.asarray(G0, float), M)
@@ -250,13 +253,13 @@ class TripletSearch:
 #: penalties of :func:`penalized_gram` tried, in order, by the search
 SEARCH_LAMBDAS = (1e1, 1e2)
 #: the relaxation's tolerance in the search: its Gram matrix is only a start that the
-#: refinement takes to the minimum (1e-7 -> 1e-5: the rotations of the 8 MoCap sequences
-#: move by at most 6e-7 after one global alignment)
+#: refinement takes to the minimum
 SEARCH_SDP_TOL = 1e-5
 
 
-def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
-                   rtol=1e-5, max_iter=200):
+def search_triplet(
+    M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS, rtol=1e-5, max_iter=200
+):
     """Multistart minimisation of Dai's cost with a stopping rule.
 
     Starts, in a fixed order: the relaxation (:func:`penalized_gram`) at each penalty in
@@ -286,9 +289,9 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
     """
     t0 = time.perf_counter()
     M = np.asarray(M_hat, float)
-    n = M.shape[1]                  # 3K, or the determined rank r
+    n = M.shape[1]  # 3K, or the determined rank r
     rng = np.random.default_rng(seed)
-    minima = []                     # [cost, G, name, count]
+    minima = []  # [cost, G, name, count]
     history = []
     Q = None
 
@@ -298,8 +301,8 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         history.append((name, float(c), int(nit)))
         for mn in minima:
             if abs(mn[0] - c) <= rtol * max(abs(mn[0]), 1e-12):
-                mn[3] += 1            # same minimum: keep the first start's triplet (its
-                return                # gauge), so round-off cannot switch between them
+                mn[3] += 1  # same minimum: keep the first start's triplet (its
+                return  # gauge), so round-off cannot switch between them
         minima.append([c, G, name, 1])
 
     def done():
@@ -318,9 +321,15 @@ def search_triplet(M_hat, K, seed=0, hits=2, max_starts=40, lams=SEARCH_LAMBDAS,
         if done():
             stopped = "hits"
     minima.sort(key=lambda mn: mn[0])
-    return TripletSearch(G=np.stack([mn[1] for mn in minima]),
-                         costs=np.array([mn[0] for mn in minima]),
-                         starts=[mn[2] for mn in minima], counts=[mn[3] for mn in minima],
-                         history=history, n_random=n_random, stopped=stopped,
-                         miss_bound=min(1.0, 3.0 / n_random) if n_random else 1.0, Q=Q,
-                         seconds=time.perf_counter() - t0)
+    return TripletSearch(
+        G=np.stack([mn[1] for mn in minima]),
+        costs=np.array([mn[0] for mn in minima]),
+        starts=[mn[2] for mn in minima],
+        counts=[mn[3] for mn in minima],
+        history=history,
+        n_random=n_random,
+        stopped=stopped,
+        miss_bound=min(1.0, 3.0 / n_random) if n_random else 1.0,
+        Q=Q,
+        seconds=time.perf_counter() - t0,
+    )

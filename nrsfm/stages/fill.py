@@ -294,7 +294,7 @@ def fill_unseen(shapes, observed, points=None):
         distances of its four fills to their median, RMS over those frames, in units of the
         shapes' RMS radius; NaN for a point not filled.
     """
-    X = np.asarray(shapes, float)                   # from reconstruct: checked
+    X = np.asarray(shapes, float)  # from reconstruct: checked
     if X.ndim != 3 or X.shape[1] != 3:
         raise ValueError(f"shapes must have shape (F, 3, P); got {X.shape}")
     observed = np.asarray(observed, bool)

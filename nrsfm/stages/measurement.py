@@ -36,7 +36,7 @@ def power_of_two_scale(A):
     m = float(np.max(np.abs(A))) if A.size else 0.0
     if m == 0.0 or not np.isfinite(m):
         return 1.0
-    _, e = np.frexp(m)                  # m = f 2**e with 0.5 <= f < 1
+    _, e = np.frexp(m)  # m = f 2**e with 0.5 <= f < 1
     return float(np.ldexp(1.0, int(e) - 1))
 
 
@@ -56,7 +56,6 @@ def left_singular(W):
     return np.linalg.svd(W, full_matrices=False)
 
 
-
 def centre_rows(W):
     """Subtract each row's mean (removes per-frame translation). Returns (W_c, means)."""
     means = W.mean(axis=1, keepdims=True)
@@ -65,23 +64,10 @@ def centre_rows(W):
 
 @dataclass
 class Factorization:
-    """Rank-3K SVD ``W ~ M_hat B_hat`` (Eq. 1).
-
-    Attributes
-    ----------
-    M_hat : (2F, 3K) ndarray
-        ``U_3K sqrt(S_3K)``.
-    B_hat : (3K, P) ndarray
-        ``sqrt(S_3K) V_3K'``.
-    singular_values : (min(2F, P),) ndarray
-        All singular values of W, for inspection of the rank.
-    residual : float
-        ``||W - M_hat B_hat||_F / ||W||_F``.
-    noise_level : float
-        W's noise level beyond rank 3K, in W's units
-        (:func:`nrsfm.noise.noise_from_singular_values`): the one estimate the diagnostics
-        read.
-    """
+    """Rank-3K SVD ``W ~ M_hat B_hat`` (Eq. 1): ``M_hat = U_3K sqrt(S_3K)`` (2F, 3K),
+    ``B_hat = sqrt(S_3K) V_3K'`` (3K, P), all singular values of W, the relative residual
+    ``||W - M_hat B_hat||_F / ||W||_F`` and W's noise level beyond rank 3K in W's units
+    (:func:`nrsfm.noise.noise_from_singular_values`)."""
 
     M_hat: np.ndarray
     B_hat: np.ndarray
@@ -106,7 +92,7 @@ def factorize(W, K):
     """
     r = 3 * K
     U, s, Vt = left_singular(W)
-    if Vt is None:                          # wide W: the right vectors from the left ones
+    if Vt is None:  # wide W: the right vectors from the left ones
         if not s[r - 1] > 0:
             raise ValueError(f"W has rank below 3K = {r}")
         Vt_r = (U[:, :r] / s[:r]).T @ W
@@ -117,8 +103,13 @@ def factorize(W, K):
     B_hat = root[:, None] * Vt_r
     nW = np.linalg.norm(W)
     residual = float(np.linalg.norm(W - M_hat @ B_hat) / nW) if nW > 0 else 0.0
-    return Factorization(M_hat=M_hat, B_hat=B_hat, singular_values=s, residual=residual,
-                         noise_level=noise_from_singular_values(s, W.shape, K))
+    return Factorization(
+        M_hat=M_hat,
+        B_hat=B_hat,
+        singular_values=s,
+        residual=residual,
+        noise_level=noise_from_singular_values(s, W.shape, K),
+    )
 
 
 def working_scale(W):
@@ -126,8 +117,10 @@ def working_scale(W):
     zero (a constant input: nothing to reconstruct)."""
     norm = float(np.linalg.norm(W))
     if not norm > 0:
-        raise ValueError("W is constant (every row has zero spread, W is zero after centring): "
-                         "nothing to reconstruct")
+        raise ValueError(
+            "W is constant (every row has zero spread, W is zero after centring): "
+            "nothing to reconstruct"
+        )
     return norm / WORKING_FROBENIUS
 
 
@@ -176,5 +169,12 @@ def measure(W, K):
     Wc_p, row_means_p = centre_rows(W / p2)
     s = working_scale(Wc_p)
     Wn = Wc_p / s
-    return Measurements(W=Wc_p * p2, row_means=row_means_p * p2, Wn=Wn, scale=s * p2,
-                        factorization=factorize(Wn, K), _p2=p2, _s=s)
+    return Measurements(
+        W=Wc_p * p2,
+        row_means=row_means_p * p2,
+        Wn=Wn,
+        scale=s * p2,
+        factorization=factorize(Wn, K),
+        _p2=p2,
+        _s=s,
+    )

@@ -89,35 +89,35 @@ def penalized_gram(M_hat, K, lam=1e2, max_iter=3000, tol=1e-7, _cache=None):
     """
     cache = {} if _cache is None else _cache
     M = np.asarray(M_hat, float)
-    F, n = M.shape[0] // 2, M.shape[1]          # 3K, or the determined rank r
-    A = _cached(cache, "A", lambda: constraint_matrix(M))     # the same M for every lam
+    F, n = M.shape[0] // 2, M.shape[1]  # 3K, or the determined rank r
+    A = _cached(cache, "A", lambda: constraint_matrix(M))  # the same M for every lam
     C = M.T @ M
     a = np.trace(C) / (2.0 * F * n)
     iu = vech_index(n)
-    dw = np.where(iu[0] == iu[1], 1.0, np.sqrt(2.0))      # vec_w(Q) = dw * vech(Q)
-    At = _cached(cache, "At", lambda: A / dw)               # A vech(Q) = At vec_w(Q)
-    t = (iu[0] == iu[1]).astype(float)                     # trace(Q) = t . vec_w(Q)
-    c = C[iu] * dw                                         # <C, Q> = c . vec_w(Q)
-    AtA = _cached(cache, "gram", lambda: At.T @ At)        # independent of the penalty
-    if "warm" in cache:                  # the previous penalty's state: fewer iterations
+    dw = np.where(iu[0] == iu[1], 1.0, np.sqrt(2.0))  # vec_w(Q) = dw * vech(Q)
+    At = _cached(cache, "At", lambda: A / dw)  # A vech(Q) = At vec_w(Q)
+    t = (iu[0] == iu[1]).astype(float)  # trace(Q) = t . vec_w(Q)
+    c = C[iu] * dw  # <C, Q> = c . vec_w(Q)
+    AtA = _cached(cache, "gram", lambda: At.T @ At)  # independent of the penalty
+    if "warm" in cache:  # the previous penalty's state: fewer iterations
         Z, U, rho = np.array(cache["warm"][0]), np.array(cache["warm"][1]), cache["warm"][2]
-    else:                                # a feasible, PSD start; a: the dual's scale
+    else:  # a feasible, PSD start; a: the dual's scale
         Z, U, rho = np.eye(n) * (2.0 * F / np.trace(C)), np.zeros((n, n)), a * RHO_START
-    upper = iu[0] * n + iu[1]                          # vech entries in Q.ravel()
-    sym = np.empty(n * n, dtype=np.intp)               # Q.ravel() = vech(Q)[sym]
+    upper = iu[0] * n + iu[1]  # vech entries in Q.ravel()
+    sym = np.empty(n * n, dtype=np.intp)  # Q.ravel() = vech(Q)[sym]
     sym[upper] = sym[iu[1] * n + iu[0]] = np.arange(upper.size)
     Hc = None
     for it in range(1, max_iter + 1):
         if Hc is None:
             L = _system_factor(AtA, 2.0 * lam / F, rho)
-            Hc = _solve(L, c)                          # H^-1 c
+            Hc = _solve(L, c)  # H^-1 c
             cHc = c @ Hc
         rhs = rho * (np.take(Z - U, upper) * dw) - a * t
         y = _solve(L, rhs)
         mu = (c @ y - 2.0 * F) / cHc
         v = (y - mu * Hc) / dw
-        Qm = v[sym].reshape(n, n)                      # the symmetric matrix of vech v
-        Qh = OVER_RELAXATION * Qm + (1.0 - OVER_RELAXATION) * Z     # over-relaxed x
+        Qm = v[sym].reshape(n, n)  # the symmetric matrix of vech v
+        Qh = OVER_RELAXATION * Qm + (1.0 - OVER_RELAXATION) * Z  # over-relaxed x
         w, E = np.linalg.eigh(Qh + U)
         Z_old = Z
         Z = (E * np.clip(w, 0, None)) @ E.T
@@ -126,7 +126,7 @@ def penalized_gram(M_hat, K, lam=1e2, max_iter=3000, tol=1e-7, _cache=None):
         rn, sn, scale = _frobenius(r), _frobenius(Z - Z_old), max(_frobenius(Z), 1e-300)
         if rn < tol * scale and sn < tol * scale:
             break
-        if it % 10 == 0:                               # residual balancing
+        if it % 10 == 0:  # residual balancing
             if rn > 10 * sn:
                 rho *= 2.0
                 U /= 2.0

@@ -11,8 +11,8 @@ from ...geometry import procrustes_so3, rotation_angle
 
 __all__ = ["filter_rotations", "register_rotations", "resolve_depth_signs"]
 
-FLIP = np.diag([-1.0, -1.0, 1.0])          # depth reversal of one frame (c_f < 0)
-MIRROR = np.diag([1.0, 1.0, -1.0])         # handedness
+FLIP = np.diag([-1.0, -1.0, 1.0])  # depth reversal of one frame (c_f < 0)
+MIRROR = np.diag([1.0, 1.0, -1.0])  # handedness
 #: a lifted frame is degenerate when |r1 x r2| is below this (parallel rows)
 DEGENERATE_CROSS = 1e-8
 #: ... or a row norm below this fraction of the largest camera scale
@@ -41,8 +41,8 @@ def rotations_from_triplets(M_hat, G, handedness=1):
     B = np.einsum("ri,kij->krj", M, G).reshape(G.shape[0], F, 2, 3)
     if handedness == -1:
         B = B * np.array([1.0, 1.0, -1.0])
-    norms = np.linalg.norm(B, axis=3)                             # (m, F, 2)
-    coef = np.sqrt(0.5 * (norms ** 2).sum(axis=2))
+    norms = np.linalg.norm(B, axis=3)  # (m, F, 2)
+    coef = np.sqrt(0.5 * (norms**2).sum(axis=2))
     scale = np.max(coef, axis=1, keepdims=True)
     tiny = DEGENERATE_ROW * np.where(scale > 0, scale, 1.0)
     ok_rows = norms > tiny[..., None]

@@ -127,32 +127,21 @@ def window_weights(F, n_windows, window):
     """(weights, spans): the (F,) 0/1 weights and (start, stop) of ``n_windows`` temporal
     windows of ``window * F`` frames (at least :data:`MIN_WINDOW_FRAMES`), spread evenly."""
     L = int(min(F, max(MIN_WINDOW_FRAMES, round(window * F))))
-    starts = (np.round(np.linspace(0, F - L, n_windows)).astype(int) if n_windows > 1
-              else np.array([0]))
-    weights, spans = [], []
-    for s in starts[:n_windows]:
-        w = np.zeros(F)
-        w[s:s + L] = 1.0
-        weights.append(w)
-        spans.append((s, s + L))
-    return weights, spans
-
-
-def triplets_on_subsets(M_hat, G0, weights):
-    """Triplets (n, 3K, 3) refined from ``G0`` on n frame subsets (their (F,) weights)."""
-    return np.stack([refine_triplet(G0, M_hat, weights=w, **WINDOW_LM)[0] for w in weights])
+    starts = np.round(np.linspace(0, F - L, n_windows)).astype(int) if n_windows > 1 else [0]
+    spans = [(s, s + L) for s in starts[:n_windows]]
+    return [(np.arange(F) >= s) & (np.arange(F) < e) for s, e in spans], spans
 
 
 def register_triplets(per_triplet, valid):
     """Every triplet's rotations registered onto the first one's (Eq. 3): registered
     (m, F, 3, 3), registration (m, 3, 3), flips (m, F), mirrored (m,)."""
     m, F = per_triplet.shape[:2]
-    registered = per_triplet.copy()
-    registration = np.tile(np.eye(3), (m, 1, 1))
+    registered, registration = per_triplet.copy(), np.tile(np.eye(3), (m, 1, 1))
     flips, mirrored = np.zeros((m, F), bool), np.zeros(m, bool)
     for k in range(1, m):
-        registered[k], registration[k], flips[k], mirrored[k], _ = register_rotations(
-            per_triplet[0], per_triplet[k], weights=valid[0] * valid[k].astype(float))
+        w = valid[0] * valid[k].astype(float)
+        out = register_rotations(per_triplet[0], per_triplet[k], weights=w)
+        registered[k], registration[k], flips[k], mirrored[k] = out[:4]
     return registered, registration, flips, mirrored
 
 
@@ -212,43 +201,63 @@ def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progres
         t = time.perf_counter()
         timings[name], t0 = t - t0, t
 
-    sub = determined_subspace(M)                       # rank r < 3K: its r dimensions
+    sub = determined_subspace(M)  # rank r < 3K: its r dimensions
     k = effective_K(sub.rank, K) if sub.deficient else K
     if sub.deficient:
         M = sub.M
-        say(f"W has numerical rank {sub.rank} < 3K = {3 * K}: rotations from the "
-            f"determined {sub.rank}-dimensional subspace, {k} triplet(s)")
+        say(
+            f"W has numerical rank {sub.rank} < 3K = {3 * K}: rotations from the "
+            f"determined {sub.rank}-dimensional subspace, {k} triplet(s)"
+        )
     search = search_triplet(M, k, seed=seed, hits=st.hits, max_starts=st.max_starts)
     say(f"best corrective triplet: Dai cost {search.costs[0]:.4g} (start {search.starts[0]})")
     G, spans = search.G[:1], np.zeros((0, 2), int)
-    if not single and k > 1:                           # step 1: K - 1 window triplets
+    if not single and k > 1:  # step 1: K - 1 window triplets
         weights, spans = window_weights(M.shape[0] // 2, k - 1, st.window)
-        G = np.concatenate([G, triplets_on_subsets(M, G[0], weights)])
+        refined = [refine_triplet(G[0], M, weights=w, **WINDOW_LM)[0] for w in weights]
+        G = np.concatenate([G, np.stack(refined)])
         spans = np.array(spans)
     lap("triplets")
     costs = np.array([triplet_cost(g, M) for g in G])
-    per_triplet, coef, valid = rotations_from_triplets(M, G)           # step 2
+    per_triplet, coef, valid = rotations_from_triplets(M, G)  # step 2
     lap("lift")
     registered, registration, flips, mirrored = register_triplets(per_triplet, valid)
     lap("registration")
-    pre = average_rotations(registered, valid, None, st.max_iter, st.eps)   # step 4
+    pre = average_rotations(registered, valid, None, st.max_iter, st.eps)  # step 4
     kept, dist = filter_rotations(registered, pre, st.delta, valid=valid)
     kept[0] |= ~kept.any(axis=0) & valid[0]
     lap("filtering")
-    averaged, avg = average_rotations(registered, kept, None, st.max_iter, st.eps,
-                                      return_info=True)                # step 5
-    if np.any(avg["empty"]):                           # frames with no usable sample
+    averaged, avg = average_rotations(
+        registered, kept, None, st.max_iter, st.eps, return_info=True
+    )  # step 5
+    if np.any(avg["empty"]):  # frames with no usable sample
         averaged = _fill_empty(averaged, avg["empty"])
     lap("averaging")
-    rotations, flipped = resolve_depth_signs(averaged)                 # step 6
-    say(f"rotations: {len(G)} triplet(s), {kept.sum()} of {kept.size} samples kept, "
-        f"{int(flipped.sum())} frames' depth sign from smoothness")
+    rotations, flipped = resolve_depth_signs(averaged)  # step 6
+    say(
+        f"rotations: {len(G)} triplet(s), {kept.sum()} of {kept.size} samples kept, "
+        f"{int(flipped.sum())} frames' depth sign from smoothness"
+    )
     if sub.deficient:
         G = lift_triplets(G, sub)
-    return RotationResult(rotations=rotations, G=G, triplet_costs=costs, search=search,
-                          window_spans=spans, per_triplet=per_triplet, coefficients=coef,
-                          registration=registration, flips=flips, mirrored=mirrored,
-                          registered=registered, filter_distance=dist, kept=kept,
-                          averaged=averaged, averaging_iterations=avg["iterations"],
-                          sign_from_smoothness=flipped, determined_rank=sub.rank,
-                          effective_K=k, timings=timings)
+    return RotationResult(
+        rotations=rotations,
+        G=G,
+        triplet_costs=costs,
+        search=search,
+        window_spans=spans,
+        per_triplet=per_triplet,
+        coefficients=coef,
+        registration=registration,
+        flips=flips,
+        mirrored=mirrored,
+        registered=registered,
+        filter_distance=dist,
+        kept=kept,
+        averaged=averaged,
+        averaging_iterations=avg["iterations"],
+        sign_from_smoothness=flipped,
+        determined_rank=sub.rank,
+        effective_K=k,
+        timings=timings,
+    )

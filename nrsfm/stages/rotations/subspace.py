@@ -44,7 +44,7 @@ def determined_subspace(M_hat, rtol=DETERMINED_RTOL):
     if M.ndim != 2:
         raise ValueError(f"M_hat must be a 2-D (2F, 3K) matrix; got shape {M.shape}")
     U, s, Vt = np.linalg.svd(M, full_matrices=False)
-    r = int(np.sum(s ** 2 > rtol * s[0] ** 2)) if s.size and s[0] > 0 else 0
+    r = int(np.sum(s**2 > rtol * s[0] ** 2)) if s.size and s[0] > 0 else 0
     r = max(r, 1)
     # a deterministic sign per direction (largest entry of V positive): one answer
     V = Vt[:r].T
@@ -63,8 +63,9 @@ def lift_triplets(G_r, sub):
     """Triplets (..., r, 3) of the subspace as triplets (..., 3K, 3) of M_hat: ``V G_r``."""
     G_r = np.asarray(G_r, float)
     if G_r.shape[-2] != sub.rank:
-        raise ValueError(f"G_r must have {sub.rank} rows (the subspace's rank); "
-                         f"got shape {G_r.shape}")
+        raise ValueError(
+            f"G_r must have {sub.rank} rows (the subspace's rank); got shape {G_r.shape}"
+        )
     return np.einsum("ir,...rj->...ij", sub.V, G_r)
 
 
@@ -76,8 +77,14 @@ def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
     not fit exactly (real shapes are not of rank K: no start does better).
     """
     sub = determined_subspace(M_hat)
-    search = search_triplet(sub.M, effective_K(sub.rank, K), seed=seed + 1,
-                            hits=n_starts + 1, max_starts=n_starts, lams=())
+    search = search_triplet(
+        sub.M,
+        effective_K(sub.rank, K),
+        seed=seed + 1,
+        hits=n_starts + 1,
+        max_starts=n_starts,
+        lams=(),
+    )
     best = float(search.costs[0])
     return bool(best < cost * (1.0 - rtol)), best
 
@@ -87,6 +94,6 @@ def transposed_cost(W, K, seed=0):
     frames of 2F points) from six starts: far below W's own where W was transposed."""
     Wt = W.T - W.T.mean(axis=1, keepdims=True)
     U, s, _ = np.linalg.svd(Wt / max(np.linalg.norm(Wt), 1e-300), full_matrices=False)
-    M_hat = U[:, :3 * K] * np.sqrt(s[:3 * K])               # rank-3K factor (Eq. 1)
+    M_hat = U[:, : 3 * K] * np.sqrt(s[: 3 * K])  # rank-3K factor (Eq. 1)
     search = search_triplet(M_hat, K, seed=seed, max_starts=6)
     return float(search.costs[0]) / (Wt.shape[0] // 2)

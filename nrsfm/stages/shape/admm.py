@@ -101,8 +101,9 @@ def normalization_scale(W):
     W = np.asarray(W, dtype=float)
     norm = float(np.linalg.norm(W)) if W.ndim == 2 else float("nan")
     if not 0 < norm < np.inf:
-        raise ValueError(f"W must be a finite, non-zero (2F, P) matrix; got shape {W.shape}, "
-                         f"norm {norm:g}")
+        raise ValueError(
+            f"W must be a finite, non-zero (2F, P) matrix; got shape {W.shape}, norm {norm:g}"
+        )
     return norm / TARGET_FROBENIUS
 
 
@@ -227,19 +228,19 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
     N = PRIORS[prior] if st.N is None else st.N
     say = progress if callable(progress) else (lambda msg: None)
     Wf = W.reshape(F, 2, P)
-    X_init = Rf.transpose(0, 2, 1) @ Wf             # pinv(R_f) = R_f' for orthonormal rows
+    X_init = Rf.transpose(0, 2, 1) @ Wf  # pinv(R_f) = R_f' for orthonormal rows
     sigma = np.linalg.svd(phi(X_init), compute_uv=False)
     theta, reg_w, xi = _admm_weights(sigma, prior, N, st)
-    Rt = Rf.transpose(0, 2, 1)                      # (F, 3, 2)
+    Rt = Rf.transpose(0, 2, 1)  # (F, 3, 2)
     Xs = phi(truncate_rank(X_init, K)).copy()
     Y, rho, n_iter, converged = np.zeros_like(Xs), st.rho0, 0, False
     hist = {k: [] for k in ("cost", "data_term", "residual", "rho")}
     for n_iter in range(1, st.max_iter + 1):
-        Z = phi_inv(Xs + Y / rho, P)                # X step (Eq. 13), closed form per frame
+        Z = phi_inv(Xs + Y / rho, P)  # X step (Eq. 13), closed form per frame
         X = Z + Rt @ (Wf - Rf @ Z) / (1.0 + rho)
         # X# step (Eq. 14, 17): PSVT with tau_i = mu theta_i / rho, the first N zero
         Xs, s_new = weighted_svt(phi(X) - Y / rho, reg_w / rho)
-        D = Xs - phi(X)                             # multiplier and penalty updates
+        D = Xs - phi(X)  # multiplier and penalty updates
         Y += rho * D
         resid = float(np.abs(D).max())
         data = 0.5 * float(np.sum((Wf - Rf @ X) ** 2))
@@ -247,15 +248,19 @@ def admm_iterations(W, R, K, prior, settings, progress=None):
             hist[key].append(value)
         rho = min(st.rho_max, st.lam * rho)
         if n_iter % PROGRESS_EVERY == 0:
-            say(f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
-                f"residual {resid:.3g}, rho {rho:.3g}")
+            say(
+                f"shape ADMM ({prior}) iter {n_iter}: cost {hist['cost'][-1]:.6g}, "
+                f"residual {resid:.3g}, rho {rho:.3g}"
+            )
         converged = resid < st.eps
         if converged or rho >= st.rho_max:
             break
     hist = {k: np.asarray(v) for k, v in hist.items()}
-    say(f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
+    say(
+        f"shape ADMM ({prior}, N={N}) stopped after {n_iter} iterations: "
         f"{'converged' if converged else 'not converged'}, residual {resid:.3g}, "
-        f"cost {hist['cost'][-1]:.6g}")
+        f"cost {hist['cost'][-1]:.6g}"
+    )
     result = ShapeResult(X, X_init, sigma, theta, N, prior, "admm", hist, n_iter, converged)
     result.objective, result.optimality = hist["cost"][-1], resid
     result.params = dict(vars(st), prior=prior, N=N, K=K, xi=xi)
@@ -281,11 +286,11 @@ def _admm_weights(sigma, prior, N, settings):
     if not sigma[0] > 0:
         raise ValueError("the pseudo-inverse shape is zero (W is zero?)")
     xi = XI_FACTOR * math.sqrt(float(sigma[0])) if settings.xi is None else settings.xi
-    theta = shape_weights(sigma, xi, settings.gamma)        # Eq. (9)
+    theta = shape_weights(sigma, xi, settings.gamma)  # Eq. (9)
     if prior == "nuclear":
         # Equal weights (BMM's plain nuclear norm), set so that X_init pays the same
         # penalty as under the weighted norm: c sum_i sigma_i = sum_i theta_i sigma_i.
         theta = np.full_like(sigma, float(theta @ sigma) / float(sigma.sum()))
     reg_w = settings.mu * theta.copy()
-    reg_w[:N] = 0.0                                 # partial sum: first N free (Eq. 10)
+    reg_w[:N] = 0.0  # partial sum: first N free (Eq. 10)
     return theta, reg_w, xi

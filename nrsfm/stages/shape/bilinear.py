@@ -195,13 +195,15 @@ def solve_bilinear(W, R, K, prior="organic", settings=None, progress=None):
         fit = pb.fit(r, warm, prune)
         ranks.append(r)
         n_total += fit["n_iter"]
-        grow = prune and fit["cert"] > 1.0 + CERTIFICATE_SLACK     # nan: full rank
-        say(f"shape (bilinear, {prior}, r={r}): {fit['n_iter']} iterations, relative "
-            f"gradient {fit['rel']:.2e}, rank {fit['live']}, certificate {fit['cert']:.4g}")
+        grow = prune and fit["cert"] > 1.0 + CERTIFICATE_SLACK  # nan: full rank
+        say(
+            f"shape (bilinear, {prior}, r={r}): {fit['n_iter']} iterations, relative "
+            f"gradient {fit['rel']:.2e}, rank {fit['live']}, certificate {fit['cert']:.4g}"
+        )
         if not grow:
             break
-        B_next = np.column_stack([fit["B"], fit["wanted"]])   # the wanted columns added
-        if B_next.shape[1] > r:             # the cap is too low: doubled (or more)
+        B_next = np.column_stack([fit["B"], fit["wanted"]])  # the wanted columns added
+        if B_next.shape[1] > r:  # the cap is too low: doubled (or more)
             r = min(max(2 * r, B_next.shape[1]), pb.r_max)
         warm = B_next[:, :r]
     return pb.result(fit, ranks, why, n_total)
@@ -218,7 +220,7 @@ class _Problem:
         if not self.scale > 0:
             raise ValueError("W is zero: nothing to reconstruct")
         self.Wn = W / self.scale
-        self.Uw, self.sw, _ = left_singular(self.Wn)   # one thin SVD (Gram matrix if wide)
+        self.Uw, self.sw, _ = left_singular(self.Wn)  # one thin SVD (Gram matrix if wide)
         self.Xi3 = self.Rf.transpose(0, 2, 1) @ self.Wn.reshape(F, 2, P)
         self.Xi = self.Xi3.reshape(F, 3 * P)
         self.sigma = _singular_values(self.Xi)
@@ -234,8 +236,10 @@ class _Problem:
         st, F, P = self.st, self.F, self.P
         if st.mu is not None:
             return float(st.mu) / self.scale
-        return max(st.mu_factor * self.noise * (math.sqrt(F) + math.sqrt(3 * P)),
-                   st.mu_noise * self.noise ** 2 * (F + 2 * P) / max(self.sigma[0], 1e-300))
+        return max(
+            st.mu_factor * self.noise * (math.sqrt(F) + math.sqrt(3 * P)),
+            st.mu_noise * self.noise**2 * (F + 2 * P) / max(self.sigma[0], 1e-300),
+        )
 
     def closed_form(self):
         """The rank-K start B0 (:mod:`.closed_form`) and its nullspace gap; where the gap is
@@ -244,9 +248,11 @@ class _Problem:
         B0, ev = nullspace_coefficients(self.Uw, self.sw, self.Rf, K)
         self.gap = float(ev[K]) if ev.size > K else float("nan")
         if not self.gap > NULLSPACE_GAP_MIN:
-            message = (text("W-shape-not-unique", gap=self.gap, K=K, min_mu=st.min_mu)
-                       if st.mu is None else
-                       text("W-shape-not-unique-mu-given", gap=self.gap, K=K, mu=st.mu))
+            message = (
+                text("W-shape-not-unique", gap=self.gap, K=K, min_mu=st.min_mu)
+                if st.mu is None
+                else text("W-shape-not-unique-mu-given", gap=self.gap, K=K, mu=st.mu)
+            )
             warnings.warn(message, RuntimeWarning, stacklevel=4)
             if st.mu is None:
                 self.mu = max(self.mu, st.min_mu)
@@ -265,7 +271,7 @@ class _Problem:
         return U[:, :r] * np.sqrt(s[:r])
 
     def reduced(self, B):
-        return reduced_objective(B, self.n, self.Pi, self.Xi, 1.0, self.reg[:B.shape[1]])
+        return reduced_objective(B, self.n, self.Pi, self.Xi, 1.0, self.reg[: B.shape[1]])
 
     def record(self, B, C, values):
         E, data, gB, gC = values
@@ -291,31 +297,48 @@ class _Problem:
         live = B.shape[1]
         rel = relative_gradient(B, C, *objective(B, C, self.Pi, Xi, 1.0, self.reg[:live])[2:])
         cert, wanted = float("nan"), None
-        if prune and live < self.r_max:     # the weights of the columns not used
-            reg_next = self.mu * bilinear_weights(self.sigma, min(2 * live, self.r_max),
-                                                  self.prior)[live:]
+        if prune and live < self.r_max:  # the weights of the columns not used
+            reg_next = (
+                self.mu * bilinear_weights(self.sigma, min(2 * live, self.r_max), self.prior)[live:]
+            )
             cert, s_g, U = rank_certificate(B, C, self.Pi, Xi, reg_next)
-            gain = s_g - reg_next[:s_g.size] * (1.0 + CERTIFICATE_SLACK)
+            gain = s_g - reg_next[: s_g.size] * (1.0 + CERTIFICATE_SLACK)
             n = int(np.argmin(gain > 0)) if not np.all(gain > 0) else gain.size
-            wanted = U[:, :n] * np.sqrt(np.maximum(gain[:n], 0.0))   # at first-order size
+            wanted = U[:, :n] * np.sqrt(np.maximum(gain[:n], 0.0))  # at first-order size
         return dict(B=B, C=C, n_iter=n_iter, rel=rel, r=r, live=live, cert=cert, wanted=wanted)
 
     def result(self, fit, ranks, rank_rule, n_iter):
         """The ShapeResult of the last fit, in W's units."""
         B, C, F, P, scale = fit["B"], fit["C"], self.F, self.P, self.scale
-        E, data, _, _ = objective(B, C, self.Pi, self.Xi, 1.0, self.reg[:fit["live"]])
-        res = self.Wn.reshape(F, 2, P) - np.einsum("fac,fcp->fap", self.Rf,
-                                                   (B @ C.T).reshape(F, 3, P))
-        data_exact = 0.5 * float(np.sum(res ** 2))
+        E, data, _, _ = objective(B, C, self.Pi, self.Xi, 1.0, self.reg[: fit["live"]])
+        res = self.Wn.reshape(F, 2, P) - np.einsum(
+            "fac,fcp->fap", self.Rf, (B @ C.T).reshape(F, 3, P)
+        )
+        data_exact = 0.5 * float(np.sum(res**2))
         R_b, R_c = np.linalg.qr(B, mode="r"), np.linalg.qr(C, mode="r")
-        wnn = data_exact + float(self.reg[:fit["live"]] @ np.linalg.svd(R_b @ R_c.T, False, 0))
-        params = dict(ranks=ranks, rank_rule=rank_rule, live_rank=fit["live"],
-                      rank_certificate=fit["cert"], nullspace_gap=self.gap)
+        wnn = data_exact + float(self.reg[: fit["live"]] @ np.linalg.svd(R_b @ R_c.T, False, 0))
+        params = dict(
+            ranks=ranks,
+            rank_rule=rank_rule,
+            live_rank=fit["live"],
+            rank_certificate=fit["cert"],
+            nullspace_gap=self.gap,
+        )
         return ShapeResult(
-            shapes=(B @ C.T).reshape(F, 3, P) * scale, X_init=self.Xi3 * scale,
-            X_init_singular_values=self.sigma * scale, theta=self.reg * scale,
-            N=1 if self.prior == "organic" else 0, prior=self.prior, solver="bilinear",
-            history={k: np.asarray(v) for k, v in self.hist.items()}, n_iter=n_iter,
-            converged=fit["rel"] <= self.gtol, objective=(E + data_exact - data) * scale ** 2,
-            optimality=fit["rel"], params=params, mu=self.mu * scale, noise=self.noise * scale,
-            wnn_objective=wnn * scale ** 2)
+            shapes=(B @ C.T).reshape(F, 3, P) * scale,
+            X_init=self.Xi3 * scale,
+            X_init_singular_values=self.sigma * scale,
+            theta=self.reg * scale,
+            N=1 if self.prior == "organic" else 0,
+            prior=self.prior,
+            solver="bilinear",
+            history={k: np.asarray(v) for k, v in self.hist.items()},
+            n_iter=n_iter,
+            converged=fit["rel"] <= self.gtol,
+            objective=(E + data_exact - data) * scale**2,
+            optimality=fit["rel"],
+            params=params,
+            mu=self.mu * scale,
+            noise=self.noise * scale,
+            wnn_objective=wnn * scale**2,
+        )

@@ -42,17 +42,17 @@ def nullspace_coefficients(U, s, Rf, K):
     """:func:`closed_form_coefficients` from the thin SVD ``U, s`` of W (any scale)."""
     F = Rf.shape[0]
     s = s / s[0]
-    n = min(3 * K, int(np.sum(s > DETERMINED_RTOL)))         # W's numerical rank, at most 3K
-    M = (U[:, :n] * s[:n]).reshape(F, 2, n)                  # M_hat_f, (F, 2, n)
+    n = min(3 * K, int(np.sum(s > DETERMINED_RTOL)))  # W's numerical rank, at most 3K
+    M = (U[:, :n] * s[:n]).reshape(F, 2, n)  # M_hat_f, (F, 2, n)
     # vec(M_f G) for G (n, 3) row-major: A_f = kron(M_f, I_3); sum_f A_f'A_f = kron(M'M, I3)
     MtM = np.einsum("fai,faj->ij", M, M)
     Q = np.kron(MtM, np.eye(3))
     v = np.einsum("fai,fac->fic", M, Rf).reshape(F, 3 * n)  # A_f' r_f = vec(M_f' R_f)
     Q -= 0.5 * v.T @ v
     evals, evecs = np.linalg.eigh((Q + Q.T) / 2)
-    G = evecs[:, :K]                                          # (3n, K)
-    B = 0.5 * v @ G                                           # b_fk = <R_f, M_f G_k> / 2
-    return B, evals[:K + 1] / max(evals[-1], 1e-300)
+    G = evecs[:, :K]  # (3n, K)
+    B = 0.5 * v @ G  # b_fk = <R_f, M_f G_k> / 2
+    return B, evals[: K + 1] / max(evals[-1], 1e-300)
 
 
 def closed_form_shapes(W, R, K):

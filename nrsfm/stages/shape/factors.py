@@ -41,16 +41,17 @@ def c_step_xi(B, n, Xi, reg):
     """:func:`c_step` from the viewing directions n (F, 3) and X_init# (F, 3P)."""
     F, r = B.shape
     P = Xi.shape[1] // 3
-    D = (n[:, :, None] * B[:, None, :]).reshape(F, 3 * r)      # columns (a, i)
+    D = (n[:, :, None] * B[:, None, :]).reshape(F, 3 * r)  # columns (a, i)
     N = -(D.T @ D)
     BB = B.T @ B
     for a in range(3):
-        N[a * r:(a + 1) * r, a * r:(a + 1) * r] += BB
+        N[a * r : (a + 1) * r, a * r : (a + 1) * r] += BB
     N[np.diag_indices(3 * r)] += np.tile(reg, 3)
     rhs = (B.T @ Xi).reshape(r, 3, P).transpose(1, 0, 2).reshape(3 * r, P)
     try:
-        c = scipy.linalg.cho_solve(scipy.linalg.cho_factor(N, check_finite=False), rhs,
-                                   check_finite=False)
+        c = scipy.linalg.cho_solve(
+            scipy.linalg.cho_factor(N, check_finite=False), rhs, check_finite=False
+        )
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
         c = np.linalg.lstsq(N, rhs, rcond=None)[0]
     return c.reshape(3, r, P).transpose(0, 2, 1).reshape(3 * P, r)
@@ -86,16 +87,16 @@ def objective(B, C, Pi, Xi, w2, reg, grad_C=True):
         PX = project(Pi, Xs)
         G = PX - Xi
         data = 0.5 * max(w2 - 2.0 * float(np.vdot(Xi, Xs)) + float(np.vdot(Xs, PX)), 0.0)
-        E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
+        E = data + 0.5 * float(reg @ (np.sum(B**2, axis=0) + np.sum(C**2, axis=0)))
         return E, data, G @ C + B * reg, (G.T @ B + C * reg) if grad_C else None
-    XiC = Xi @ C                                               # (F, r)
+    XiC = Xi @ C  # (F, r)
     HB = np.matmul(frame_hessians(C, Pi, np.zeros(r)), B[:, :, None])[:, :, 0]
     data = 0.5 * max(w2 - 2.0 * float(np.vdot(B, XiC)) + float(np.vdot(B, HB)), 0.0)
-    E = data + 0.5 * float(reg @ (np.sum(B ** 2, axis=0) + np.sum(C ** 2, axis=0)))
+    E = data + 0.5 * float(reg @ (np.sum(B**2, axis=0) + np.sum(C**2, axis=0)))
     if not grad_C:
         return E, data, HB - XiC + B * reg, None
-    N = _normal_matrix(B, Pi)                                  # (3r, 3r), rows (i, a)
-    NC = (N @ C.T.reshape(3 * r, -1)).reshape(r, -1).T          # (3P, r)
+    N = _normal_matrix(B, Pi)  # (3r, 3r), rows (i, a)
+    NC = (N @ C.T.reshape(3 * r, -1)).reshape(r, -1).T  # (3P, r)
     return E, data, HB - XiC + B * reg, NC - Xi.T @ B + C * reg
 
 
@@ -112,7 +113,7 @@ def frame_hessians(C, Pi, reg):
     C_j> + reg_i delta_ij``, from the nine (r x r) blocks ``sum_p C_i[a, p] C_j[b, p]``."""
     r = C.shape[1]
     F = Pi.shape[0]
-    Ct = C.T.reshape(r, 3, -1).transpose(1, 0, 2).reshape(3 * r, -1)     # rows (a, i)
+    Ct = C.T.reshape(r, 3, -1).transpose(1, 0, 2).reshape(3 * r, -1)  # rows (a, i)
     M = (Ct @ Ct.T).reshape(3, r, 3, r).transpose(0, 2, 1, 3).reshape(9, r * r)
     H = (Pi.reshape(F, 9) @ M).reshape(F, r, r)
     H[:, np.arange(r), np.arange(r)] += reg
@@ -138,8 +139,8 @@ def _cholesky(H):
         d = np.sqrt(np.maximum(H[:, j, j] - np.einsum("fk,fk->f", Lj, Lj), floor))
         L[:, j, j] = d
         if j + 1 < r:
-            rest = H[:, j + 1:, j] - np.matmul(L[:, j + 1:, :j], Lj[:, :, None])[:, :, 0]
-            L[:, j + 1:, j] = rest / d[:, None]
+            rest = H[:, j + 1 :, j] - np.matmul(L[:, j + 1 :, :j], Lj[:, :, None])[:, :, 0]
+            L[:, j + 1 :, j] = rest / d[:, None]
     return L
 
 
@@ -162,9 +163,9 @@ def _lower_inverse(L, out=None):
 def _lower_inverse_small(L):
     """:func:`_lower_inverse` by forward substitution, the batch the innermost axis."""
     n, r, _ = L.shape
-    A = np.ascontiguousarray(L.transpose(1, 2, 0))                  # (r, r, n)
+    A = np.ascontiguousarray(L.transpose(1, 2, 0))  # (r, r, n)
     X = np.zeros_like(A)
-    d = 1.0 / np.diagonal(L, axis1=1, axis2=2).T                    # (r, n)
+    d = 1.0 / np.diagonal(L, axis1=1, axis2=2).T  # (r, n)
     for j in range(r):
         if j:
             X[j, :j] = -np.einsum("kn,kcn->cn", A[j, :j], X[:j, :j]) * d[j]
@@ -215,8 +216,8 @@ def _product_svd(B, C):
 
 def relative_gradient(B, C, gB, gC):
     """``||grad E|| / ||(B, C)||``."""
-    g = math.sqrt(float(np.sum(gB ** 2) + np.sum(gC ** 2)))
-    return g / max(math.sqrt(float(np.sum(B ** 2) + np.sum(C ** 2))), 1e-300)
+    g = math.sqrt(float(np.sum(gB**2) + np.sum(gC**2)))
+    return g / max(math.sqrt(float(np.sum(B**2) + np.sum(C**2))), 1e-300)
 
 
 def _aligned(B, C, prune_rtol):
@@ -287,7 +288,7 @@ def _two_loop(g, S, Y, Linv):
     if S:
         ly = _half(Linv, Y[-1])
         den = float(np.vdot(ly, ly))
-        if den > 0:                     # 0 where y underflows (factors collapsing to 0)
+        if den > 0:  # 0 where y underflows (factors collapsing to 0)
             gamma = float(np.vdot(S[-1], Y[-1])) / den
     d = gamma * _h0(Linv, q)
     for s_, y_, (a, rho) in zip(S, Y, reversed(steps)):
@@ -344,19 +345,19 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
     reduced, record, Pi, reg = problem.reduced, problem.record, problem.Pi, problem.reg
     gtol, max_iter = problem.gtol, problem.max_iter
     C, _ = reduced(B)
-    B, _, _, _ = _aligned(B, C, None)               # a start's small columns may grow
+    B, _, _, _ = _aligned(B, C, None)  # a start's small columns may grow
     C, vals = reduced(B)
     rel = relative_gradient(B, C, vals[2], vals[3])
     record(B, C, vals)
     n_iter, S, Y = 0, [], []
     e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
-        _, Linv = frame_preconditioner(C, Pi, reg[:B.shape[1]])
-        failed = False                              # a line search found no decrease
+        _, Linv = frame_preconditioner(C, Pi, reg[: B.shape[1]])
+        failed = False  # a line search found no decrease
         for _ in range(min(segment, max_iter - n_iter)):
             d = _two_loop(vals[2], S, Y, Linv)
             slope = float(np.vdot(vals[2], d))
-            if not slope < 0 and S:                 # not a descent direction: memory emptied
+            if not slope < 0 and S:  # not a descent direction: memory emptied
                 S, Y = [], []
                 d = -_h0(Linv, vals[2])
                 slope = float(np.vdot(vals[2], d))
@@ -375,7 +376,7 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
         B, keep, M, Mt = _aligned(B, C, prune_rtol)
         C, vals = reduced(B)
         rel = relative_gradient(B, C, vals[2], vals[3])
-        if failed and not S:                        # no descent possible (rounding)
+        if failed and not S:  # no descent possible (rounding)
             break
         carry = not failed and keep == r and M is not None
         S, Y = ([s_ @ M for s_ in S], [y_ @ Mt for y_ in Y]) if carry else ([], [])
