@@ -32,9 +32,11 @@ def check_measurements(W, name="W", allow_missing=False):
     Raises
     ------
     ValueError
-        Wrong shape, fewer than 2 frames or 3 points, infinite entries, or NaN entries
-        unless ``allow_missing`` (counted apart).
+        Not real numbers (complex, bool, dates, strings, objects: the dtype is named), wrong
+        shape, fewer than 2 frames or 3 points, infinite entries, or NaN entries unless
+        ``allow_missing`` (counted apart).
     """
+    _check_real(W, name)
     if allow_missing and isinstance(W, np.ma.MaskedArray):
         A = np.ma.filled(W.astype(float), np.nan)
     else:
@@ -54,6 +56,20 @@ def check_measurements(W, name="W", allow_missing=False):
         raise ValueError(f"{name} needs at least 3 points; got P={P} (shape {A.shape})")
     _measurement_values(A, name, allow_missing)
     return A
+
+
+def _check_real(W, name):
+    """ValueError naming ``name`` and its dtype unless W holds integers or real floats."""
+    kind = np.asarray(W).dtype.kind if not isinstance(W, np.ndarray) else W.dtype.kind
+    if kind in "iuf":
+        return
+    if isinstance(W, (str, bytes)):
+        raise ValueError(f"{name} must be an array of numbers; got the string {W!r} (load the "
+                         f"file first, e.g. numpy.load)")
+    what = {"c": "complex numbers", "b": "booleans", "M": "dates", "m": "time intervals",
+            "U": "strings", "S": "strings", "O": "Python objects"}.get(kind, "not numbers")
+    raise ValueError(f"{name} must hold real numbers; got dtype {np.asarray(W).dtype} "
+                     f"({what})")
 
 
 def _measurement_values(A, name, allow_missing):

@@ -549,3 +549,17 @@ def test_lbfgs_memory_survives_factors_collapsing_to_zero():
     assert S == [] and Y == []
     _add_pair(S, Y, s, 1e-3 * s)
     assert len(S) == 1
+
+
+@pytest.mark.parametrize("seed", [0, 3, 7])
+def test_no_numpy_warning_escapes_when_the_factors_collapse(seed):
+    """Random W (no shape model) with the weighted prior: the factors shrink towards 0 and
+    L-BFGS's pairs underflow; the run ends finite and warns only through NRSfMWarning."""
+    W = np.random.default_rng(seed).standard_normal((102, 16))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = nrsfm.reconstruct(W, 3, method="wnn")
+    assert np.isfinite(res.shapes).all()
+    assert all(issubclass(w.category, nrsfm.NRSfMWarning) for w in caught), [
+        str(w.message)[:60] for w in caught
+    ]

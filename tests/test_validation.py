@@ -3,6 +3,7 @@ import pytest
 
 import data_tools as dt
 import nrsfm
+import nrsfm.validation
 
 
 @pytest.fixture(scope="module")
@@ -168,3 +169,31 @@ def test_non_finite_counts_each_kind_when_missing_is_refused():
     assert np.isnan(check_measurements(W, allow_missing=True)).sum() == 2
     with pytest.raises(ValueError, match=r"^W contains 2 NaN entries$"):
         check_measurements(W)
+
+
+@pytest.mark.parametrize(
+    "dtype,what",
+    [
+        (complex, "complex numbers"),
+        (bool, "booleans"),
+        ("datetime64[s]", "dates"),
+        ("timedelta64[s]", "time intervals"),
+        (str, "strings"),
+        (object, "Python objects"),
+    ],
+)
+def test_measurements_must_be_real_numbers(dtype, what):
+    W = np.arange(40.0).reshape(8, 5)
+    with pytest.raises(ValueError, match=rf"^W must hold real numbers; got dtype .*\({what}\)"):
+        nrsfm.reconstruct(W.astype(dtype), 1)
+
+
+def test_a_file_name_is_not_measurements():
+    with pytest.raises(ValueError, match="W must be an array of numbers; got the string 'W.npz'"):
+        nrsfm.reconstruct("W.npz", 1)
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.uint16, np.float32])
+def test_integer_and_single_precision_measurements_are_numbers(dtype):
+    W = nrsfm.validation.check_measurements((100 * np.arange(40.0).reshape(8, 5)).astype(dtype))
+    assert W.dtype == np.float64

@@ -355,7 +355,8 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
         _, Linv = frame_preconditioner(C, Pi, reg[: B.shape[1]])
         failed = False  # a line search found no decrease
         for _ in range(min(segment, max_iter - n_iter)):
-            d = _two_loop(vals[2], S, Y, Linv)
+            with np.errstate(over="ignore", invalid="ignore"):  # pairs that underflowed:
+                d = _two_loop(vals[2], S, Y, Linv)  # d not finite, memory emptied below
             slope = float(np.vdot(vals[2], d))
             if not slope < 0 and S:  # not a descent direction: memory emptied
                 S, Y = [], []
