@@ -3,7 +3,7 @@
 from nrsfm.sequence import Sequence
 
 from .external import EXTERNAL, load_external
-from .mocap import DAI_K, MOCAP_K, MOCAP_NAMES, load_all, load_mocap, mocap_dir
+from .mocap import DAI_K, MOCAP_K, MOCAP_NAMES, load_all, load_mat, load_mocap, mocap_dir
 from .noise import add_noise, drop_tracks
 from .reprojection import parse_path, reproject, validation_set
 from .synthetic import (
@@ -41,6 +41,7 @@ __all__ = [
     "default_sequence",
     "drop_tracks",
     "load_all",
+    "load_mat",
     "load_mocap",
     "make_rank_deficient",
     "make_synthetic",

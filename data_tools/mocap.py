@@ -109,7 +109,8 @@ def load_mocap(name: str, data_dir=None) -> Sequence:
             f"cannot read {path}: not a valid .mat file ({type(exc).__name__}: {_one_line(exc)})"
         ) from exc
     try:
-        seq = _load_akhter(name, mat) if name in AKHTER else _load_torresani(name, mat)
+        load = _load_akhter if name in AKHTER else _load_torresani
+        seq = load(name, mat, MOCAP_K[name])
     except (KeyError, IndexError, ValueError, TypeError) as exc:
         layout = "Akhter et al. (W, S, Rs)" if name in AKHTER else "Torresani et al. (P3_gt)"
         raise ValueError(
@@ -126,7 +127,43 @@ def _one_line(exc):
     return text[:200] if text else "no message"
 
 
-def _load_akhter(name, mat):
+def load_mat(path):
+    """Any ``.mat`` file of measurements: the benchmark's layouts (Akhter et al.: ``W``,
+    ``S`` and ``Rs`` where the camera moves; Torresani et al.: ``P3_gt``) with their ground
+    truth, or a file with a ``W`` (2F, P) (and optionally ``K``) alone.
+
+    Returns
+    -------
+    Sequence
+        ``K`` from the file's ``K`` where it has one, else None; ``shapes`` and
+        ``rotations`` where the layout holds them.
+
+    Raises
+    ------
+    ValueError
+        Not a readable MATLAB file, or none of the layouts (the arrays found are named).
+    """
+    path = Path(path)
+    try:
+        mat = scipy.io.loadmat(str(path))
+    except Exception as exc:  # MatReadError, ValueError, OSError, zlib errors, ...
+        raise ValueError(f"cannot read {path}: not a valid .mat file ({_one_line(exc)})") from exc
+    K = mat.get("K")
+    K = int(np.asarray(K).ravel()[0]) if K is not None and np.size(K) == 1 else None
+    arrays = sorted(k for k in mat if not k.startswith("__"))
+    try:
+        if "P3_gt" in mat and "W" not in mat:
+            return _load_torresani(path.stem, mat, K)
+        if "W" in mat and "S" in mat:
+            return _load_akhter(path.stem, mat, K)
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {_one_line(exc)}") from exc
+    if "W" not in mat:
+        raise ValueError(f"{path} has no array 'W' nor a benchmark layout (found: {arrays})")
+    return Sequence(name=path.stem, W=np.asarray(mat["W"]), K=K)
+
+
+def _load_akhter(name, mat, K):
     W = np.asarray(mat["W"], dtype=float)
     S_raw = np.asarray(mat["S"], dtype=float)
     if W.ndim != 2 or W.shape[0] % 2 or W.shape[0] == 0:
@@ -152,13 +189,13 @@ def _load_akhter(name, mat):
         W=W,
         shapes=shapes,
         rotations=rotations,
-        K=MOCAP_K[name],
+        K=K,
         edges=edges,
         world_shapes=S,
     )
 
 
-def _load_torresani(name, mat):
+def _load_torresani(name, mat, K):
     P3 = np.asarray(mat["P3_gt"], dtype=float)
     if P3.ndim != 2 or P3.shape[0] % 3 or P3.shape[0] == 0:
         raise ValueError(f"P3_gt has shape {P3.shape}, expected (3F, P)")
@@ -166,9 +203,7 @@ def _load_torresani(name, mat):
     shapes = np.stack([P3[:F], P3[F : 2 * F], P3[2 * F :]], axis=1)  # (F, 3, P)
     shapes = shapes - shapes.mean(axis=2, keepdims=True)
     W = shapes[:, :2, :].reshape(2 * F, -1).copy()
-    return Sequence(
-        name=name, W=W, shapes=shapes, rotations=None, K=MOCAP_K[name], world_shapes=None
-    )
+    return Sequence(name=name, W=W, shapes=shapes, rotations=None, K=K, world_shapes=None)
 
 
 def load_all(data_dir=None):

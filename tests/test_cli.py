@@ -156,6 +156,47 @@ def test_float_integral_K_in_file_is_accepted(tmp_path, seq):
     assert main(["run", str(path), "--quiet", "--method", "pseudo_inverse"]) == 0
 
 
+def test_run_reads_a_mat_file_with_W(tmp_path, seq):
+    path = tmp_path / "w.mat"
+    scipy.io.savemat(path, dict(W=seq.W, K=2))
+    assert main(["run", str(path), "--quiet"]) == 0
+    with np.load(tmp_path / "w_nrsfm.npz") as z:
+        assert z["shapes"].shape == seq.shapes.shape and int(z["K"]) == 2
+
+
+@pytest.mark.parametrize("layout", ["akhter", "torresani"])
+def test_run_reads_the_benchmark_layouts_with_their_ground_truth(tmp_path, seq, layout):
+    """The MoCap files' layouts: Akhter et al. (W, S interleaved per frame, Rs) and
+    Torresani et al. (P3_gt, stacked by coordinate); errors against their ground truth."""
+    F, P = seq.shapes.shape[0], seq.shapes.shape[2]
+    if layout == "akhter":
+        world = seq.rotations.transpose(0, 2, 1) @ seq.shapes
+        arrays = dict(W=seq.W, S=world.reshape(3 * F, P), Rs=seq.rotations[:, :2].reshape(2 * F, 3))
+    else:
+        arrays = dict(P3_gt=seq.shapes.transpose(1, 0, 2).reshape(3 * F, P))
+    path = tmp_path / f"{layout}.mat"
+    scipy.io.savemat(path, arrays)
+    assert main(["run", str(path), "--K", "2", "--quiet"]) == 0
+    with np.load(tmp_path / f"{layout}_nrsfm.npz") as z:
+        assert float(z["e3d"]) < 1e-6  # noise-free: exact
+        assert ("e_R" in z.files) == (layout == "akhter")
+
+
+def test_run_leaves_out_tracks_seen_in_one_frame(tmp_path, seq, capsys):
+    """What nrsfm track writes: tracks lost at once (seen in 1 frame) are not used, counted,
+    and marked in the output; the ground truth and the skeleton follow the tracks used."""
+    W = seq.W.copy()
+    W[2:, [3, 7]] = np.nan  # tracks 3 and 7: seen in frame 0 only
+    edges = np.array([[0, 1], [1, 3], [2, 4], [7, 8]])
+    path = tmp_path / "tracks.npz"
+    np.savez(path, W=W, K=2, shapes=seq.shapes, edges=edges, tracks=W, lost_at=np.zeros(20))
+    assert main(["run", str(path), "--quiet"]) == 0
+    assert "2 of 20 tracks seen in fewer than 2 frames not used" in capsys.readouterr().out
+    with np.load(tmp_path / "tracks_nrsfm.npz") as z:
+        assert z["shapes"].shape == (30, 3, 18) and z["used_points"].sum() == 18
+        assert not z["used_points"][[3, 7]].any() and "e3d" in z.files
+
+
 def test_rrd_without_path_goes_to_the_users_out_folder(tmp_path):
     proc = nrsfm("demo", "--rrd", "--quiet", "--method", "pseudo_inverse", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr

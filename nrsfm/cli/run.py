@@ -1,4 +1,5 @@
-"""``nrsfm run INPUT.npz``: reconstruct W read from a file, write the result (.npz)."""
+"""``nrsfm run INPUT``: reconstruct W read from an ``.npz`` or ``.mat`` file, write the
+result (.npz)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ from .common import positive_int, print_report, rrd_path, save_rrd
 
 #: Arrays ``nrsfm run`` reads from its input ``.npz``.
 INPUT_KEYS = ("W", "K", "shapes", "rotations", "edges")
+#: What ``nrsfm track`` writes beside W: read as a tracks file, not warned about
+TRACK_KEYS = ("tracks", "lost_at", "started_at", "fb_error", "colors", "image_size", "method")
 
 
 def _numeric(name, A):
@@ -49,38 +52,55 @@ def _edges(value, P):
     return E.astype(int)
 
 
+def _load_mat(path):
+    """The arrays of a ``.mat`` file in ``nrsfm run``'s names (:func:`data_tools.load_mat`:
+    a ``W``, or the benchmark's layouts with their ground truth)."""
+    from data_tools import load_mat
+
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"input file {path} not found")
+    seq = load_mat(path)
+    arrays = dict(W=seq.W, K=seq.K, shapes=seq.shapes, rotations=seq.rotations, edges=seq.edges)
+    return {k: v for k, v in arrays.items() if v is not None}
+
+
 def _read_input(inp, K_arg, given_rotations):
     """W (2F, P), K and the ground truth (``shapes``, ``rotations``, ``edges``, None when
     absent) of the input file, checked."""
     expected = "an .npz with an array named W, e.g. written by numpy.savez('input.npz', W=W, K=3)"
-    data = load_npz(inp, "input", expected)
+    data = _load_mat(inp) if inp.suffix.lower() == ".mat" else load_npz(inp, "input", expected)
     if "W" not in data:
         raise ValueError(f"{inp} has no array 'W' (found: {sorted(data) or 'no arrays'})")
     W = check_measurements(_numeric("W", data["W"]), allow_missing=True)
+    F, P = W.shape[0] // 2, W.shape[1]
+    used = np.isfinite(W).reshape(F, 2, P).all(axis=1).sum(axis=0) >= 2
     if np.isnan(W).any():  # NaN = not observed: enough observations?
         from ..stages.completion import observed_mask
 
+        W = W[:, used]  # a track seen in fewer than 2 frames has no depth: not used
         observed_mask(W)
-    F, P = W.shape[0] // 2, W.shape[1]
     if K_arg is None and "K" not in data:
         raise UsageError("give --K (the input has no array 'K')")
-    K = check_K(K_arg if K_arg is not None else _file_K(data["K"]), F, P)
+    K = check_K(K_arg if K_arg is not None else _file_K(data["K"]), F, W.shape[1])
     truth = dict.fromkeys(("shapes", "rotations", "edges"))
     if "shapes" in data:
         shapes = _numeric("shapes", data["shapes"])
-        truth["shapes"] = check_shapes(shapes, "shapes (ground truth)", n_frames=F, n_points=P)
+        shapes = check_shapes(shapes, "shapes (ground truth)", n_frames=F, n_points=P)
+        truth["shapes"] = shapes[:, :, used]
     if "rotations" in data:
         R = _numeric("rotations", data["rotations"])
         truth["rotations"] = check_rotations(R, "rotations (ground truth)", n_frames=F)
     if "edges" in data:
-        truth["edges"] = _edges(data["edges"], P)
+        E, index = _edges(data["edges"], P), np.cumsum(used) - 1
+        truth["edges"] = index[E[used[E].all(axis=1)]]
     if given_rotations and truth["rotations"] is None:
         raise UsageError(f"--given-rotations: {inp} has no array 'rotations'")
-    ignored = sorted(set(data) - set(INPUT_KEYS))
+    known = INPUT_KEYS + (TRACK_KEYS if "tracks" in data else ())
+    ignored = sorted(set(data) - set(known))
     if ignored:
         keys = ", ".join(INPUT_KEYS)
         warnings.warn(warning_text("W-ignored-arrays", inp=inp, ignored=ignored, keys=keys))
-    return W, K, truth
+    return W, K, truth, used
 
 
 def _output_arrays(result, K, errs):
@@ -99,7 +119,12 @@ def _output_arrays(result, K, errs):
 def cmd_run(args):
     """``nrsfm run INPUT.npz [-o OUT.npz] [--rrd [PATH]]``."""
     inp = Path(args.input).expanduser()
-    W, K, truth = _read_input(inp, args.K, args.given_rotations)
+    W, K, truth, used = _read_input(inp, args.K, args.given_rotations)
+    if not used.all():
+        print(
+            f"  {int((~used).sum())} of {used.size} tracks seen in fewer than 2 frames not "
+            f"used (used_points in the output)"
+        )
     # the outputs, checked before the work: neither overwrites the input or the other
     out = args.output if args.output is not None else inp.with_name(inp.stem + "_nrsfm.npz")
     out = output_path(out, "output")
@@ -117,7 +142,8 @@ def cmd_run(args):
         seq = Sequence(inp.stem, result.W, truth["shapes"], R, K, truth["edges"])
     errs = print_report(result, seq)
     try:
-        save_npz(out, **_output_arrays(result, K, errs))
+        arrays = _output_arrays(result, K, errs)
+        save_npz(out, **(arrays if used.all() else dict(arrays, used_points=used)))
     except OSError as exc:
         raise OSError(f"cannot write the output {out}: {one_line(exc)}") from exc
     print(f"  wrote {out}")
@@ -129,13 +155,16 @@ def cmd_run(args):
 def add_run_command(sub):
     p = sub.add_parser(
         "run",
-        help="reconstruct W from an .npz file and write the result",
+        help="reconstruct W from an .npz or .mat file and write the result",
         epilog="The output .npz holds rotations (F, 3, 3), shapes (F, 3, P), X_init, W, "
         "row_means, scale, K, method, version, shape_* (shape-stage history), G, "
         "per_triplet_rotations, kept (rotation stage) and e3d, e3d_akhter, e_R when the input "
-        "has ground truth; see the README.",
+        "has ground truth; see docs/cli.md.",
     )
-    text = ".npz with W (2F, P) or (F, 2, P); optional: K, ground truth shapes, rotations, edges"
+    text = (
+        ".npz with W (2F, P) or (F, 2, P) (optional: K, ground truth shapes, rotations, "
+        "edges), or .mat with W (and K) or in the MoCap benchmark's layouts"
+    )
     p.add_argument("input", help=text)
     p.add_argument("--K", type=positive_int, help="number of shape bases (default: the file's K)")
     text = "output file, written exactly there (default: INPUT_nrsfm.npz)"
