@@ -46,6 +46,26 @@ def check_output_path(path, what="output"):
     return path
 
 
+def _remove_stale(path):
+    """Remove the temporary files that an earlier write of ``path`` left behind when its
+    process was killed (their process id, in the name, no longer runs)."""
+    for tmp in path.parent.glob(f".{path.name}.*.tmp{path.suffix}"):
+        pid = tmp.name[len(path.name) + 2 :].split(".")[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not _running(int(pid)):
+            with suppress(OSError):
+                tmp.unlink()
+
+
+def _running(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 @contextmanager
 def atomic_output(path):
     """Yield a new empty temporary file beside ``path`` (whose folder must exist), with the
@@ -53,8 +73,9 @@ def atomic_output(path):
     ones under the umask) and is renamed over ``path``. On an exception it is removed and
     ``path`` is left as it was."""
     path = Path(path)
+    _remove_stale(path)
     fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent
+        prefix=f".{path.name}.{os.getpid()}.", suffix=f".tmp{path.suffix}", dir=path.parent
     )
     os.close(fd)
     tmp = Path(tmp)

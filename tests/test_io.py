@@ -117,3 +117,25 @@ def test_load_npz_missing_file_and_folder(tmp_path):
         load_npz(tmp_path / "nope.npz")
     with pytest.raises(ValueError, match="is a folder; expected an .npz archive"):
         load_npz(tmp_path)
+
+
+def test_a_killed_write_leaves_no_temporary_file_after_the_next_one(tmp_path):
+    """A process killed while writing leaves its temporary file; the next write of the same
+    output removes it (not the temporary file of a process that still runs)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out.npz"
+    code = (
+        "import os, sys\n"
+        "from nrsfm.io import atomic_output\n"
+        "with atomic_output(sys.argv[1]) as tmp:\n"
+        "    open(tmp, 'wb').write(b'partial')\n"
+        "    os._exit(9)\n"  # killed half-way: no clean-up runs
+    )
+    subprocess.run([sys.executable, "-c", code, str(out)], check=False)
+    assert len(list(tmp_path.glob(".out.npz.*.tmp.npz"))) == 1
+    alive = tmp_path / f".out.npz.{os.getpid()}.x.tmp.npz"  # this process: still running
+    alive.write_bytes(b"")
+    save_npz(out, a=np.zeros(3))
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["out.npz", alive.name])
