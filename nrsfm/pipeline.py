@@ -74,11 +74,8 @@ class Reconstruction:
         iterations; :attr:`observed`, :attr:`W_completed`).
     fill_spread : (P,) ndarray or None
         Where the :attr:`undetermined` points were filled from their neighbours
-        (``MeasurementSettings.fill = "neighbours"``;
-        :func:`nrsfm.stages.fill.fill_unseen`): each one's fill reliability, how far its
-        four fills stray from their median in units of the shapes' RMS radius (larger:
-        less reliable; NaN for the points not filled so). :attr:`shape_stage` keeps the
-        shape stage's own fill.
+        (:func:`nrsfm.stages.fill.fill_unseen`): how far each one's four fills stray from
+        their median, in units of the shapes' RMS radius (NaN for the points not filled so).
     """
 
     rotations: np.ndarray
@@ -114,10 +111,8 @@ class Reconstruction:
 
     @cached_property
     def fill_gain(self):
-        """(P,) ndarray or None: where the input had missing observations, how much each
-        track's filled entries amplify measurement noise under the rank-3K motion
-        ``M_hat`` that the later stages used
-        (:func:`nrsfm.stages.completion.fill_gain`); see :attr:`undetermined`."""
+        """(P,) ndarray or None: how much each track's filled entries amplify measurement
+        noise under ``M_hat`` (:func:`nrsfm.stages.completion.fill_gain`)."""
         if self.observed is None:
             return None
         return fill_gain(self.factorization.M_hat, self.observed)
@@ -133,11 +128,9 @@ class Reconstruction:
 
     @property
     def unreliable(self):
-        """(P,) bool: tracks whose 3D in the frames they were not seen in may be far off:
-        :attr:`undetermined` ones, except those filled from their neighbours
-        (``MeasurementSettings.fill = "neighbours"``, the default) whose fills agree (stray
-        from their median by at most :data:`nrsfm.stages.fill.SPREAD_MAX` of the shapes'
-        RMS radius, :attr:`fill_spread`); all False for complete input."""
+        """(P,) bool: :attr:`undetermined` tracks except those whose neighbour fills agree
+        (:attr:`fill_spread` at most :data:`nrsfm.stages.fill.SPREAD_MAX`): their 3D in the
+        frames they were not seen in may be far off."""
         if self.fill_spread is None:
             return self.undetermined
         return self.undetermined & ~(self.fill_spread <= SPREAD_MAX)
@@ -182,14 +175,10 @@ class Reconstruction:
 
         Notes
         -----
-        ``e3d_akhter`` uses one global alignment, so the frame matters. Where the
-        ground-truth cameras move (the Akhter sequences) the world-frame shapes are
-        compared, as Akhter's and Dai's code do. Where the ground-truth camera is fixed
-        (dance; face, walking and shark, whose rigid motion is inside the shape) the
-        factorisation puts the object's rigid motion into the estimated cameras, so the
-        camera-frame shapes ``R_f X_f`` are compared with the camera-frame ground truth.
-        With this rule our BMM lands next to Dai's own code (``peer_bmm_octave``) on
-        both kinds of sequence.
+        ``e3d_akhter`` uses one global alignment, so the frame matters: the world-frame
+        shapes where the ground-truth cameras move (as Akhter's and Dai's code do), the
+        camera-frame shapes ``R_f X_f`` where the ground-truth camera is fixed (the
+        factorisation then puts the object's rigid motion into the cameras).
         """
         from .metrics import e3d, e3d_akhter, rotation_error
 
@@ -232,14 +221,6 @@ class Reconstruction:
         t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
         lines.append(f"  time: {t}")
         return "\n".join(lines)
-
-
-def _progress_printer(progress):
-    if callable(progress):
-        return progress
-    if progress:
-        return lambda msg: print(f"[nrsfm] {msg}", file=sys.stderr, flush=True)
-    return lambda msg: None
 
 
 @contextmanager
@@ -330,7 +311,9 @@ def reconstruct(
     settings = _settings(settings, method=method, shape_solver=shape_solver, missing=missing)
     # every input check before any computation (the completion can take a while)
     W, K, rotations = check_problem(W, K, rotations, settings.measurement.missing)
-    say = _progress_printer(progress)
+    say = progress if callable(progress) else (lambda msg: None)
+    if progress and not callable(progress):
+        say = lambda msg: print(f"[nrsfm] {msg}", file=sys.stderr, flush=True)  # noqa: E731
     timings = {}
     with blas_threads(blas_thread_limit) if blas_thread_limit else nullcontext():
         completion = None

@@ -1,16 +1,8 @@
-"""Every setting of one ``reconstruct`` run: the method, and the stages' own settings.
-
-Each stage owns its settings class, its fields and their validation:
-
-* :class:`MeasurementSettings` (:mod:`nrsfm.stages.completion`): missing observations;
-* :class:`RotationSettings` (:mod:`nrsfm.stages.rotations`): the triplet search, windows,
-  filter and average;
-* :class:`BilinearSettings` or :class:`AdmmSettings` (:mod:`nrsfm.stages.shape`): the
-  shape solver and its constants.
-
-The method decides what the stages compute (:data:`METHODS`): how many triplets and which
-prior. One run is configured one way: ``reconstruct(W, K, **keywords)``, each keyword one
-field of :class:`Settings` (:data:`KEYWORDS`), or ``reconstruct(W, K, settings=...)``.
+"""Every setting of one ``reconstruct`` run: the method (:data:`METHODS`: how many triplets,
+which prior) and each stage's own settings class, which owns and validates its fields
+(:class:`MeasurementSettings`, :class:`RotationSettings`, :class:`BilinearSettings` or
+:class:`AdmmSettings`). One run is configured one way: ``reconstruct(W, K, **keywords)``,
+each keyword one field of :class:`Settings` (:data:`KEYWORDS`), or ``settings=``.
 """
 
 from __future__ import annotations

@@ -64,12 +64,20 @@ def _check_real(W, name):
     if kind in "iuf":
         return
     if isinstance(W, (str, bytes)):
-        raise ValueError(f"{name} must be an array of numbers; got the string {W!r} (load the "
-                         f"file first, e.g. numpy.load)")
-    what = {"c": "complex numbers", "b": "booleans", "M": "dates", "m": "time intervals",
-            "U": "strings", "S": "strings", "O": "Python objects"}.get(kind, "not numbers")
-    raise ValueError(f"{name} must hold real numbers; got dtype {np.asarray(W).dtype} "
-                     f"({what})")
+        raise ValueError(
+            f"{name} must be an array of numbers; got the string {W!r} (load the "
+            f"file first, e.g. numpy.load)"
+        )
+    what = {
+        "c": "complex numbers",
+        "b": "booleans",
+        "M": "dates",
+        "m": "time intervals",
+        "U": "strings",
+        "S": "strings",
+        "O": "Python objects",
+    }.get(kind, "not numbers")
+    raise ValueError(f"{name} must hold real numbers; got dtype {np.asarray(W).dtype} ({what})")
 
 
 def _measurement_values(A, name, allow_missing):
@@ -146,6 +154,7 @@ def check_rotations(R, name="R", n_frames=None, allow_orthographic=False, atol=1
     ValueError
         Wrong shape, wrong F, non-finite entries, or rows not orthonormal.
     """
+    _check_real(R, name)
     A = np.array(R, dtype=float, copy=True)
     rows_ok = (2, 3) if allow_orthographic else (3,)
     if A.ndim != 3 or A.shape[2] != 3 or A.shape[1] not in rows_ok:
@@ -167,6 +176,7 @@ def check_rotations(R, name="R", n_frames=None, allow_orthographic=False, atol=1
 
 def check_shapes(X, name="X", n_frames=None, n_points=None):
     """Return per-frame 3D shapes as a float (F, 3, P) array."""
+    _check_real(X, name)
     A = np.asarray(X, dtype=float)
     if A.ndim != 3 or A.shape[1] != 3:
         raise ValueError(f"{name} must have shape (F, 3, P); got {A.shape}")

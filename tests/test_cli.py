@@ -262,7 +262,7 @@ def _bad_inputs(tmp_path, seq, good):
         "--seed -1": (["run", good, "--seed=-1"], "non-negative"),
         "W strings": (
             ["run", _write(tmp_path, "ws.npz", W=np.array([["a"] * 5] * 4), K=1)],
-            "numeric",
+            "W must hold real numbers; got dtype <U1 (strings)",
         ),
         "W nan": (
             ["run", _write(tmp_path, "nan.npz", W=np.full((10, 6), np.nan), K=1)],

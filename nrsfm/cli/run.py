@@ -23,13 +23,6 @@ INPUT_KEYS = ("W", "K", "shapes", "rotations", "edges")
 TRACK_KEYS = ("tracks", "lost_at", "started_at", "fb_error", "colors", "image_size", "method")
 
 
-def _numeric(name, A):
-    A = np.asarray(A)
-    if A.dtype.kind not in "iuf":
-        raise ValueError(f"{name} must be a numeric (integer or float) array; got dtype {A.dtype}")
-    return A
-
-
 def _file_K(value):
     """K stored in a file: one integer (an integral float is accepted)."""
     A = np.asarray(value)
@@ -71,7 +64,7 @@ def _read_input(inp, K_arg, given_rotations):
     data = _load_mat(inp) if inp.suffix.lower() == ".mat" else load_npz(inp, "input", expected)
     if "W" not in data:
         raise ValueError(f"{inp} has no array 'W' (found: {sorted(data) or 'no arrays'})")
-    W = check_measurements(_numeric("W", data["W"]), allow_missing=True)
+    W = check_measurements(data["W"], allow_missing=True)
     F, P = W.shape[0] // 2, W.shape[1]
     used = np.isfinite(W).reshape(F, 2, P).all(axis=1).sum(axis=0) >= 2
     if np.isnan(W).any():  # NaN = not observed: enough observations?
@@ -84,11 +77,10 @@ def _read_input(inp, K_arg, given_rotations):
     K = check_K(K_arg if K_arg is not None else _file_K(data["K"]), F, W.shape[1])
     truth = dict.fromkeys(("shapes", "rotations", "edges"))
     if "shapes" in data:
-        shapes = _numeric("shapes", data["shapes"])
-        shapes = check_shapes(shapes, "shapes (ground truth)", n_frames=F, n_points=P)
+        shapes = check_shapes(data["shapes"], "shapes (ground truth)", n_frames=F, n_points=P)
         truth["shapes"] = shapes[:, :, used]
     if "rotations" in data:
-        R = _numeric("rotations", data["rotations"])
+        R = data["rotations"]
         truth["rotations"] = check_rotations(R, "rotations (ground truth)", n_frames=F)
     if "edges" in data:
         E, index = _edges(data["edges"], P), np.cumsum(used) - 1

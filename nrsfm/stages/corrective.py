@@ -205,28 +205,13 @@ def refine_triplet(G0, M_hat, weights=None, max_iter=500, tol=1e-10, lam0=LAM0, 
 class TripletSearch:
     """Output of :func:`search_triplet`: the distinct minima of Dai's cost it found.
 
-    Attributes
-    ----------
-    G : (m, 3K, 3) ndarray
-        The refined triplets of the distinct minima, lowest cost first (``G[0]``: the best).
-    costs : (m,) ndarray
-        Dai's cost of each.
-    starts : list of str
-        The first start that reached each minimum (``relaxed(lam=...)`` or ``randomN``).
-    counts : list of int
-        Starts that reached each minimum.
-    history : list of (str, float, int)
-        Every start: its name, the cost it reached, its iterations.
-    n_random : int
-        Random starts refined.
-    stopped : {"hits", "max_starts"}
-        Why the search stopped.
-    miss_bound : float
-        ``3 / n_random``: with 95 % confidence, the attraction probability of a better
-        minimum never reached (rule of three; 1 when no random start was used).
-    Q : (3K, 3K) ndarray
-        The last relaxed Gram matrix (:func:`~nrsfm.stages.relaxation.penalized_gram`).
-    seconds : float
+    ``G`` (m, 3K, 3) and ``costs`` (m,): the refined triplets of the distinct minima, lowest
+    cost first; ``starts``: the first start that reached each (``relaxed(lam=...)`` or
+    ``randomN``) and ``counts`` how many did; ``history``: every start's (name, cost,
+    iterations); ``n_random``: random starts refined; ``stopped``: ``"hits"`` or
+    ``"max_starts"``; ``miss_bound``: ``3 / n_random``, with 95 % confidence the attraction
+    probability of a better minimum never reached (rule of three; 1 with no random start);
+    ``Q``: the last relaxed Gram matrix; ``seconds``.
     """
 
     G: np.ndarray

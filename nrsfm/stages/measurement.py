@@ -126,21 +126,10 @@ def working_scale(W):
 
 @dataclass
 class Measurements:
-    """What the measurement stage hands on.
-
-    Attributes
-    ----------
-    W : (2F, P) ndarray
-        The row-centred input, in the input's units.
-    row_means : (2F,) ndarray
-        What centring removed (per-frame translation).
-    Wn : (2F, P) ndarray
-        ``W / scale``, ``||Wn||_F = WORKING_FROBENIUS``: what the later stages run on.
-    scale : float
-        ``||W||_F / WORKING_FROBENIUS``.
-    factorization : Factorization
-        Rank-3K SVD of Wn.
-    """
+    """What the measurement stage hands on: the row-centred input ``W`` (2F, P) in its
+    units, ``row_means`` (2F,) (what centring removed: per-frame translation), ``Wn = W /
+    scale`` (``||Wn||_F = WORKING_FROBENIUS``: what the later stages run on), ``scale`` and
+    the rank-3K ``factorization`` of Wn."""
 
     W: np.ndarray
     row_means: np.ndarray

@@ -77,14 +77,8 @@ def lower_minimum(M_hat, K, cost, seed=0, n_starts=4, rtol=1e-3):
     not fit exactly (real shapes are not of rank K: no start does better).
     """
     sub = determined_subspace(M_hat)
-    search = search_triplet(
-        sub.M,
-        effective_K(sub.rank, K),
-        seed=seed + 1,
-        hits=n_starts + 1,
-        max_starts=n_starts,
-        lams=(),
-    )
+    k, hits = effective_K(sub.rank, K), n_starts + 1
+    search = search_triplet(sub.M, k, seed=seed + 1, hits=hits, max_starts=n_starts, lams=())
     best = float(search.costs[0])
     return bool(best < cost * (1.0 - rtol)), best
 
