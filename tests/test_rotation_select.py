@@ -116,3 +116,20 @@ def test_shape_for_the_stage_rotations_in_one_solve(monkeypatch):
     amp = res.diagnostics.signals["depth_amplification"]
     assert amp == given.diagnostics.signals["depth_amplification"]
     assert 0.9 < amp < 2.0
+
+
+def test_rank_below_three_is_refused_naming_the_rank_and_what_to_try():
+    """A rigid planar object (W of rank 2): no camera is determined by the images; the error
+    says so, and the same W with the rotations given reconstructs it."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(0)
+    X = np.vstack([rng.standard_normal((2, 25)), np.zeros((1, 25))])
+    R = Rotation.from_rotvec(np.linspace(0, 1, 30)[:, None] * [0.3, 1, 0.2]).as_matrix()
+    W = (R[:, :2] @ X).reshape(60, 25)
+    with pytest.raises(ValueError, match=r"^W has numerical rank 2 < 3: .* rotations=R"):
+        nrsfm.reconstruct(W, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", nrsfm.NRSfMWarning)  # rank 2 < 3K: flagged, as it is
+        res = nrsfm.reconstruct(W, 1, rotations=R)
+    assert res.reprojection_error() < 1e-6 * np.abs(W).max()

@@ -185,7 +185,8 @@ def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progres
     Raises
     ------
     ValueError
-        Settings that are not a RotationSettings, or M_hat not (2F, 3K).
+        Settings that are not a RotationSettings, M_hat not (2F, 3K), or W of numerical rank
+        below 3 (no camera is determined; the message says what to try).
     """
     st = RotationSettings() if settings is None else settings
     if not isinstance(st, RotationSettings):
@@ -202,6 +203,12 @@ def estimate_rotations(M_hat, K, settings=None, *, single=False, seed=0, progres
         timings[name], t0 = t - t0, t
 
     sub = determined_subspace(M)  # rank r < 3K: its r dimensions
+    if sub.rank < 3:  # a camera takes three directions of M_hat (Eq. 1)
+        raise ValueError(
+            f"W has numerical rank {sub.rank} < 3: its cameras are not determined (a rigid "
+            f"planar object or a single moving point under an orthographic camera); give the "
+            f"rotations (reconstruct(W, K, rotations=R)) or track points off one plane"
+        )
     k = effective_K(sub.rank, K) if sub.deficient else K
     if sub.deficient:
         M = sub.M
