@@ -556,3 +556,19 @@ def test_run_with_the_admm_shape_solver(tmp_path, good, seq):
         assert z["shapes"].shape == seq.shapes.shape
         assert "shape_rho" in z.files  # the ADMM's penalty schedule ran
         assert float(z["e3d"]) < 0.1  # noise-free, true cameras
+
+
+def test_benchmark_checks_its_folders_before_any_work(tmp_path, monkeypatch, capsys):
+    """No data folder, a data folder that is not one and an output that cannot be written
+    are command-line errors (exit 2, one line, as for mocap), before any task runs."""
+    monkeypatch.delenv("NRSFM_DATA", raising=False)
+    cases = [
+        (["--out", tmp_path / "a"], "no data folder: pass --data DIR or set NRSFM_DATA"),
+        (["--data", tmp_path / "none", "--out", tmp_path / "b"], "is not a folder"),
+        (["--sequences", "synthetic-1", "--out", "/proc/nrsfm-out"], "--out /proc/nrsfm-out"),
+    ]
+    for args, message in cases:
+        with pytest.raises(SystemExit) as exit_:
+            main(["benchmark", *map(str, args), "--only", "mocap", "--quick", "--quiet"])
+        assert exit_.value.code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "a" / "cache").exists() and not (tmp_path / "b").exists()

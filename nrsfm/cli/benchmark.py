@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
-from .common import positive_int, seed
+from ..io import check_output_path
+from .common import UsageError, positive_int, seed
 
 
 def cmd_benchmark(args):
@@ -13,9 +15,26 @@ def cmd_benchmark(args):
 
     out = Path(args.out).expanduser()
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a folder")
+        raise UsageError(f"--out {out} exists and is not a folder")
+    mocap = not args.sequences or any(not s.startswith("synthetic") for s in args.sequences)
+    if mocap and args.data is None and not os.environ.get("NRSFM_DATA"):
+        raise UsageError(
+            "no data folder: pass --data DIR or set NRSFM_DATA (the folder that "
+            "holds mocap/, or mocap/ itself)"
+        )
+    if mocap and args.data is not None and not Path(args.data).expanduser().is_dir():
+        raise UsageError(f"--data {args.data} is not a folder")
+    try:  # the output folder, checked before any work
+        out.mkdir(parents=True, exist_ok=True)
+        check_output_path(out / "README.md", "--out")
+    except OSError as exc:
+        raise UsageError(f"--out {out}: {exc.strerror or exc}") from exc
+    external = args.external_data
+    if external is None and args.data is not None:  # external/ beside mocap/, as NRSFM_DATA
+        root = Path(args.data).expanduser()
+        external = root.parent if root.name == "mocap" else root
     kw = dict(only=args.only, sequences=args.sequences, quick=args.quick, workers=args.workers)
-    kw.update(seed=args.seed, progress=not args.quiet, external=args.external_data)
+    kw.update(seed=args.seed, progress=not args.quiet, external=external)
     res = run_benchmark(out, args.data, **kw)
     print(
         f"nrsfm benchmark: {res['n_tasks']} tasks ({res['n_cached']} cached) in "
