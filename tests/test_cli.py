@@ -96,7 +96,7 @@ def test_registrations_build_the_parser():
 
 
 def test_run_writes_exactly_the_path_given(tmp_path, good, seq, capsys):
-    out = tmp_path / "result.dat"
+    out = tmp_path / "result.npz"
     assert (
         main(
             [
@@ -114,7 +114,7 @@ def test_run_writes_exactly_the_path_given(tmp_path, good, seq, capsys):
     )
     text = capsys.readouterr().out
     assert f"wrote {out}\n" in text and "e3d" in text
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.dat", "seq.npz"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.npz", "seq.npz"]
     with np.load(out) as z:
         assert z["shapes"].shape == (30, 3, 20)
         np.testing.assert_allclose(z["rotations"], seq.rotations)
@@ -295,6 +295,7 @@ def _bad_inputs(tmp_path, seq, good):
             "rotations",
         ),
         "output is a folder": (["run", good, "-o", tmp_path], "existing folder"),
+        "output not .npz": (["run", good, "-o", tmp_path / "o.txt"], "name it so"),
         "output folder missing": (["run", good, "-o", tmp_path / "no" / "o.npz"], "does not exist"),
         "output read-only folder": (["run", good, "-o", "/sys/o.npz"], "not writable"),
         "output is the input": (["run", good, "-o", good], "overwrite the input"),
@@ -340,6 +341,7 @@ CASES = [
     "edges bad",
     "given rotations absent",
     "output is a folder",
+    "output not .npz",
     "output folder missing",
     "output read-only folder",
     "output is the input",
@@ -572,3 +574,11 @@ def test_benchmark_checks_its_folders_before_any_work(tmp_path, monkeypatch, cap
             main(["benchmark", *map(str, args), "--only", "mocap", "--quick", "--quiet"])
         assert exit_.value.code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "a" / "cache").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("frames", ["0", "1"])
+def test_demo_video_frames_is_a_command_line_error_below_two(frames, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["demo", "--video", "--frames", frames])
+    assert exit_.value.code == 2
+    assert f"argument --frames: must be at least 2; got {frames}" in capsys.readouterr().err

@@ -48,9 +48,14 @@ def _integer(text, what, minimum):
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected {what}; got {text!r}") from None
     if value < minimum:
-        need = "at least 1" if minimum else "non-negative"
+        need = f"at least {minimum}" if minimum else "non-negative"
         raise argparse.ArgumentTypeError(f"must be {need}; got {value}")
     return value
+
+
+def frame_count(text):
+    """argparse type: a number of frames, at least 2 (a camera motion needs two)."""
+    return _integer(text, "an integer of at least 2", 2)
 
 
 def positive_int(text):
@@ -80,10 +85,14 @@ def add_reconstruction_options(p, rrd_name, quiet=True):
         p.add_argument("--quiet", action="store_true", help="no progress messages")
 
 
-def output_path(path, what):
+def output_path(path, what, suffix=".npz"):
     """The output file ``path`` (``~`` expanded), checked writable before the work
-    (ValueError / OSError otherwise: exit status 1)."""
-    return check_output_path(Path(path).expanduser(), what)
+    (ValueError / OSError otherwise: exit status 1); a name not ending in ``suffix`` (what is
+    written there) is a :class:`UsageError`."""
+    path = Path(path).expanduser()
+    if path.suffix.lower() != suffix and not path.is_dir():
+        raise UsageError(f"{what} {path}: the file written is a {suffix} file; name it so")
+    return check_output_path(path, what)
 
 
 def rrd_path(args, default):
@@ -98,7 +107,7 @@ def rrd_path(args, default):
     path = Path(args.rrd).expanduser()
     if path.suffix.lower() != ".rrd":
         raise UsageError(f"--rrd {path}: the recording file name must end in .rrd")
-    return output_path(path, "--rrd")
+    return output_path(path, "--rrd", ".rrd")
 
 
 def write_recording(path, write):

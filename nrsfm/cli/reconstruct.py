@@ -8,7 +8,8 @@ import os
 
 from ..pipeline import reconstruct
 from ..validation import check_K
-from .common import UsageError, add_reconstruction_options, positive_int, print_report
+from .common import UsageError, add_reconstruction_options, frame_count, positive_int
+from .common import print_report
 from .common import rrd_path, save_rrd
 
 
@@ -63,7 +64,7 @@ def add_demo_command(sub):
     add_reconstruction_options(p, "demo.rrd (--video: out/demo_video.rrd)")
     text = "render a synthetic video with ground truth, write it, run nrsfm video on it"
     p.add_argument("--video", action="store_true", help=text)
-    p.add_argument("--frames", type=positive_int, metavar="N", help="--video: frames (default 40)")
+    p.add_argument("--frames", type=frame_count, metavar="N", help="--video: frames (default 40)")
     text = "--video: image size in pixels (default: 240x320)"
     p.add_argument("--size", type=image_size, metavar="HxW", help=text)
     text = "--video: sheet (a waving flag, default) or face"

@@ -134,7 +134,7 @@ def cmd_demo_video(args):
     argv += ["--shape-solver", args.shape_solver] if args.shape_solver else []
     argv += (["--rrd", str(rrd)] if rrd is not None else []) + ["--quiet"] * args.quiet
     print(
-        f"synthetic video: {video.surface}, {F} frames of {size[1]}x{size[0]}, seed "
+        f"synthetic video: {video.surface}, {F} frames of {size[0]}x{size[1]} (HxW), seed "
         f"{args.seed}; wrote {frames}/*.png and {truth}"
     )
     print("running: nrsfm " + " ".join(argv), flush=True)
