@@ -183,7 +183,12 @@ def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplificati
         sig["depth_amplification"] = amp
         undetermined = sig["noise_level"] > DEPTH_NOISE_MIN or not np.isfinite(amp)
         if amp > DEPTH_AMPLIFICATION_MAX and undetermined:
-            flags.append(text("W-depth-undetermined", amp=amp, amp_max=DEPTH_AMPLIFICATION_MAX))
+            why = (
+                f"the cameras leave it {amp:.3g} x as open as cameras from all directions would"
+                if np.isfinite(amp)
+                else "no camera sees one of its directions"
+            )
+            flags.append(text("W-depth-undetermined", why=why, amp_max=DEPTH_AMPLIFICATION_MAX))
     if rotation_stage is not None:
         _rotation_signals(W, K, factorization, rotation_stage, seed, sig, flags, notes)
     if not full_rank:

@@ -96,8 +96,8 @@ CATALOG = {
         dict(cost=0.52, ratio=5.1, pred=0.1, r=36),
     ),
     "W-depth-undetermined": Entry(
-        "the camera motion does not determine the depth of the deformation: the cameras leave it "
-        "{amp:.3g} x as open as cameras from all directions would (warned above {amp_max}), so "
+        "the camera motion does not determine the depth of the deformation: {why} (warned "
+        "above {amp_max}), so "
         "the prior, not the images, sets the depth of the moving parts, which may be wrong even "
         "where the images fit; a limit of the data, not of the settings: use views from more "
         "varied directions",
@@ -107,7 +107,10 @@ CATALOG = {
         "pseudo-inverse)",
         "the deformation moves in directions the cameras hardly see while it moves.",
         "no setting fixes it; a sequence whose camera or object turns more while it deforms does.",
-        dict(amp=38.0, amp_max=8.0),
+        dict(
+            why="the cameras leave it 38 x as open as cameras from all directions would",
+            amp_max=8.0,
+        ),
     ),
     "W-triplet-unconfirmed": Entry(
         "only {hits} of {n_starts} starts of the corrective-triplet search reached its best "

@@ -216,3 +216,11 @@ def test_narrow_camera_path_warns_depth_undetermined():
         res, caught = _run(seq.W, 2, **kw)
         assert res.diagnostics.signals["depth_amplification"] > D.DEPTH_AMPLIFICATION_MAX
         assert len(caught) == 1 and "W-depth-undetermined: " in str(caught[0].message)
+
+
+def test_an_infinite_depth_amplification_reads_in_words():
+    """The depth flag of cameras that never see a direction of a mode says so, not "inf x"."""
+    seq = data_tools.make_synthetic(F=30, P=20, K=2, noise=0.02, seed=1)
+    d = D.diagnose(seq.W, 2, factorize(seq.W, 2), depth_amplification=np.inf)
+    (flag,) = [f for f in d.flags if f.startswith("W-depth-undetermined: ")]
+    assert "no camera sees one of its directions" in flag and "inf" not in flag
