@@ -70,19 +70,10 @@ class NRSfMWarning(UserWarning):
 
 @dataclass
 class Diagnostics:
-    """Measured quality signals of one run.
-
-    Attributes
-    ----------
-    signals : dict
-        Signal name -> measured value (see the module docstring).
-    flags : list of str
-        One message per signal that crossed its threshold, starting with its id (``W-...``,
-        ``docs/warnings.md``): what is wrong, what it means and what to try.
-    notes : list of str
-        Observations that need no action (ids ``N-...``).
-    thresholds : dict
-        Signal name -> the rule that flags it.
+    """Measured quality signals of one run: ``signals`` (name -> value, see the module
+    docstring), ``flags`` (one message per signal that crossed its threshold, starting with
+    its id ``W-...``: what is wrong, what it means, what to try), ``notes`` (observations
+    that need no action, ids ``N-...``) and ``thresholds`` (name -> the rule that flags it).
     """
 
     signals: dict = field(default_factory=dict)

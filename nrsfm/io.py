@@ -51,19 +51,14 @@ def _remove_stale(path):
     process was killed (their process id, in the name, no longer runs)."""
     for tmp in path.parent.glob(f".{path.name}.*.tmp{path.suffix}"):
         pid = tmp.name[len(path.name) + 2 :].split(".")[0]
-        if pid.isdigit() and int(pid) != os.getpid() and not _running(int(pid)):
-            with suppress(OSError):
-                tmp.unlink()
-
-
-def _running(pid):
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+        if pid.isdigit() and int(pid) != os.getpid():
+            try:
+                os.kill(int(pid), 0)  # raises where no such process runs
+            except ProcessLookupError:
+                with suppress(OSError):
+                    tmp.unlink()
+            except OSError:  # another user's process, running
+                pass
 
 
 @contextmanager

@@ -170,20 +170,9 @@ def depth_amplification(R, X, K):
     It uses the modes' energy, not the shapes' depth, so shapes that came out flat where
     the depth is not seen still read as undetermined.
 
-    Parameters
-    ----------
-    R : (F, 3, 3) or (F, 2, 3) ndarray
-        Camera rotations (only the first two rows are used).
-    X : (F, 3, P) ndarray
-        Shapes (any units: the signal is scale free).
-    K : int
-        Number of modes (those below ``MODE_RTOL`` of the first are left out).
-
-    Returns
-    -------
-    float
-        ``inf`` where a direction of a mode is seen by no camera (a static camera);
-        ``nan`` for shapes that are all zero.
+    R (F, 3, 3) or (F, 2, 3) are the cameras, X (F, 3, P) the shapes (any units), K the
+    number of modes (those below ``MODE_RTOL`` of the first left out). Returns a float:
+    ``inf`` where no camera sees a direction of a mode, ``nan`` for shapes all zero.
     """
     R, X = np.asarray(R, float)[:, :2], np.asarray(X, float)  # from reconstruct: checked
     if X.ndim != 3 or X.shape[1] != 3 or R.shape != (X.shape[0], 2, 3):

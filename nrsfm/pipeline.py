@@ -156,22 +156,10 @@ class Reconstruction:
         return float(np.sqrt(np.mean(d**2)) * p2)
 
     def errors(self, shapes_gt=None, rotations_gt=None, world_shapes_gt=None):
-        """Benchmark errors against ground truth.
-
-        Parameters
-        ----------
-        shapes_gt : (F, 3, P) ndarray, optional
-            Ground truth in the camera frame (``Sequence.shapes``).
-        rotations_gt : (F, 3, 3) ndarray, optional
-            Ground-truth cameras (``Sequence.rotations``).
-        world_shapes_gt : (F, 3, P) ndarray, optional
-            Ground truth in its world frame; by default ``R_gt' shapes_gt``.
-
-        Returns
-        -------
-        dict
-            ``e3d`` (per-frame similarity alignment, frame-independent), ``e3d_akhter``
-            and ``e_R`` where rotations are given.
+        """Benchmark errors against ground truth: a dict of ``e3d`` (per-frame similarity
+        alignment) and ``e3d_akhter`` given ``shapes_gt`` (F, 3, P, in the camera frame:
+        ``Sequence.shapes``), ``e_R`` given ``rotations_gt`` (F, 3, 3); ``world_shapes_gt``:
+        the ground truth in its world frame (default ``R_gt' shapes_gt``).
 
         Notes
         -----
