@@ -30,6 +30,8 @@ given are left out):
 
 from __future__ import annotations
 
+import hashlib
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -190,12 +192,20 @@ def log_content(rec, content):
     _log_series(rec, rr, content)
 
 
+def recording_id_of(result):
+    """The recording id of a run: the same W, K, settings and seed give the same id (the
+    bytes of two recordings differ still: Rerun stamps every row with its own id and time)."""
+    h = hashlib.sha256(np.ascontiguousarray(result.W).tobytes())
+    h.update(repr((result.K, getattr(result, "settings", None), result.seed)).encode())
+    return str(uuid.UUID(h.hexdigest()[:32]))
+
+
 def build_recording(result, sequence=None, *, application_id="nrsfm", recording_id=None):
     """A ``rerun.RecordingStream`` holding the run of ``result`` (a :class:`nrsfm.
     Reconstruction`, with the ground truth ``sequence`` overlaid), its default blueprint
     sent, buffered until a sink is attached (``rec.save(path)``, ``rec.spawn()``)."""
     content = recording_content(result, sequence)
-    rec = rl.new_stream(application_id, recording_id)
+    rec = rl.new_stream(application_id, recording_id or recording_id_of(result))
     rl.send_blueprint(rec, make_blueprint(content))
     log_content(rec, content)
     return rec
@@ -206,6 +216,7 @@ def save_recording(result, path, sequence=None, *, application_id="nrsfm", recor
     file ``path`` (parent folders created) and return its Path; the stream is closed and its
     threads released, so repeated calls do not accumulate threads."""
     content = recording_content(result, sequence)
-    with rl.rrd_stream(path, make_blueprint(content), application_id, recording_id) as rec:
+    rid = recording_id or recording_id_of(result)
+    with rl.rrd_stream(path, make_blueprint(content), application_id, rid) as rec:
         log_content(rec, content)
     return Path(path)
