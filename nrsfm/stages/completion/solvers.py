@@ -1,42 +1,23 @@
 """The two completions of W, and the time lags that they share (paper Sec. 4e-ii).
 
 W (2F, P) comes checked by :func:`nrsfm.validation.check_problem`, NaN marking a missing
-entry. A missing observation is a (frame, point) pair: both coordinates go together, so the
-mask is ``observed`` (F, P). A frame must observe at least 3 points (an orthographic camera
-and its translation) and a point must be observed in at least 2 frames (its depth).
+entry; a missing observation is a (frame, point) pair, the mask ``observed`` (F, P). A frame
+must observe at least 3 points and a point be observed in at least 2 frames.
 
-The time-lagged matrix of W (2F, P) for lags ``d_1, ..., d_n`` (frames) is
+The time-lagged matrix for lags ``d_1, ..., d_n``, ``H(W) = [S_{d_1} W, ..., S_{d_n} W]``
+(2F, n P; ``S_d`` shifts the frames by d, edges repeated), lets a missing point be seen
+through its own trajectory at the adjacent frames (lags ``(-1, 0, 1)``); ``(0,)`` is W
+itself. Both completions fit H(W) and fill a missing entry with the mean of its copies' fits:
 
-    H(W) = [S_{d_1} W, ..., S_{d_n} W]      (2F, n P),   S_d: frames shifted by d,
-
-edges repeated. With the lags ``(-1, 0, 1)`` a missing point is seen through its own
-trajectory at the adjacent frames as well as through the other points (the rows of H stay
-low-rank when the trajectories are smooth); ``(0,)`` is W itself (frames in any order). Both
-completions fit H(W) and fill a missing entry with the mean of its copies' fits.
-
-Factorisation (:func:`complete_low_rank`, at the scale of video): the measurement model
-(Eq. 1) with the translation t explicit, fitted to the observed entries with a small ridge
-(the bilinear form of a nuclear norm, Cabral et al., ICCV 2013):
-
-    minimise_{M, B, t}  1/2 ||P_Omega(H(W) - M B - t 1')||_F^2 + lam/2 (||M||_F^2 + ||B||_F^2),
-
-M (2F, r), B (r, n P), by alternating exact least squares (Okatani, Yoshida & Deguchi, ICCV
-2011), no SVD after the start. The symmetries that only the ridge pins (``M -> M G``, ``B ->
-G^-1 B``; ``B -> B - c 1'``, ``t -> t + M c``), along which alternation crawls (Buchanan &
-Fitzgibbon, CVPR 2005), are fixed in every sweep, and the sweep is extrapolated by
-``k^(1/3)`` when that lowers the cost (Bro's line search). M and t are fitted on the
-*determined* tracks (fill gain at most ``MAX_GAIN``), every b_p then under their prior.
-
-Soft-impute (:func:`complete_measurements`): nuclear-norm completion with free per-row
-offsets t (the per-frame translation), every copy of a missing entry kept equal:
-
-    minimise_{L, t}  1/2 ||P_Omega(H(W) - L - t 1')||_F^2 + tau ||L||_*.
-
-Soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010) fills the missing entries with the
-current estimate, takes the row means as t, soft-thresholds the singular values of the
-centred H, averages the copies of each entry, and repeats; tau is continued from ``sigma_1 /
-10`` down to ``TAU_FRACTION sigma_1`` (sigma_1 of the mean-filled, centred H), with warm
-starts (Cabral et al.'s rank continuation, ICCV 2013). Scale-equivariant.
+* :func:`complete_low_rank` (at the scale of video): ``min 1/2 ||P_Omega(H(W) - M B - t 1')||^2
+  + lam/2 (||M||^2 + ||B||^2)`` (Cabral et al., ICCV 2013) by alternating exact least squares
+  (Okatani et al., ICCV 2011) with the gauge fixed in every sweep (Buchanan & Fitzgibbon,
+  CVPR 2005) and Bro's line search; M and t fitted on the *determined* tracks (fill gain at
+  most ``MAX_GAIN``), every b_p under their prior.
+* :func:`complete_measurements`: soft-impute (Mazumder, Hastie & Tibshirani, JMLR 2010) of
+  ``min 1/2 ||P_Omega(H(W) - L - t 1')||^2 + tau ||L||_*``, every copy of a missing entry kept
+  equal, tau continued from ``sigma_1 / 10`` down to ``TAU_FRACTION sigma_1`` with warm
+  starts. Scale-equivariant.
 """
 
 from __future__ import annotations
