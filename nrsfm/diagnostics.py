@@ -184,8 +184,10 @@ def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplificati
         _rotation_signals(W, K, factorization, rotation_stage, seed, sig, flags, notes)
     if not full_rank:
         # with a confirmed triplet that fits at the noise level not a failure by itself (a
-        # note), otherwise a flag and the named cause of the other flags
-        if flags or rotation_stage is None:
+        # note), otherwise a flag and the named cause of the other flags (of the jumps too,
+        # if the triplet does not fit: alone they are the mirror ambiguity)
+        fits = sig.get("triplet_cost_ratio", 0.0) <= COST_RATIO_MAX
+        if rotation_stage is None or any(f[:14] != "W-camera-jumps" or not fits for f in flags):
             flags.insert(0, text("W-rank-deficient", rank=rank, K=K, r=r, rtol=RANK_RTOL))
         else:
             k_eff = rotation_stage.effective_K
@@ -232,15 +234,9 @@ def _rotation_signals(W, K, fact, rotation_stage, seed, sig, flags, notes):
     sig["camera_spread_deg"] = spread
     if spread < CAMERA_SPREAD_MIN_DEG:
         flags.append(text("W-static-camera", spread=spread, spread_min=CAMERA_SPREAD_MIN_DEG))
-    if sfrac > SIGN_FRACTION_MAX:
-        # alone, cameras that jump by more than 90 degrees are the orthographic mirror
-        # ambiguity; with other flags, or a rank-deficient W whose triplet does not fit it at
-        # the noise level, a sign of wrong rotations
+    if sfrac > SIGN_FRACTION_MAX:  # each frame's depth sign: W never fixes it (mirror)
         n = int(rotation_stage.sign_from_smoothness.sum())
-        if flags or (not full_rank and ratio > COST_RATIO_MAX):
-            flags.append(text("W-camera-jumps", n=n, F=F, frac_max=SIGN_FRACTION_MAX))
-        else:
-            notes.append(text("N-camera-jumps", n=n, F=F, frac_max=SIGN_FRACTION_MAX))
+        flags.append(text("W-camera-jumps", n=n, F=F, frac_max=SIGN_FRACTION_MAX))
     sig["looks_transposed"] = False
     if ratio > COST_RATIO_MAX and full_rank and P % 2 == 0 and 3 * K <= min(P, twoF - 1):
         here = cost / F

@@ -40,7 +40,8 @@ CATALOG = {
         "the cameras and shapes may be wrong; a planar object, a static camera (rank at most 2K) "
         "or a K too large does this; try a lower K (3K <= {rank})",
         "the numerical rank of the centred W (singular values above `RANK_RTOL` = {RANK_RTOL:g} x "
-        "s_1) below 3K, with another flag or given rotations (else `N-rank-deficient-subspace`)",
+        "s_1) below 3K, with given rotations or another flag (`W-camera-jumps` only with a cost "
+        "ratio above `COST_RATIO_MAX` = {COST_RATIO_MAX}; else `N-rank-deficient-subspace`)",
         "the cameras and shapes along the model's directions that W lacks are not measured.",
         "lower K until 3K is at most the rank; check for a planar object or a static camera.",
         dict(rank=4, K=2, r=6, rtol=1e-6),
@@ -132,26 +133,16 @@ CATALOG = {
         dict(kept=0.21, kept_min=0.5),
     ),
     "W-camera-jumps": Entry(
-        "the estimated cameras jump between frames: {n} of {F} frames had their depth sign set by "
-        "motion smoothness (warned above {frac_max:.0%}), and the run has other warnings or W has "
-        "fewer than 3K directions with a triplet that does not fit it: together a sign of wrong "
-        "rotations; check that the frames are in time order",
-        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, with another "
-        "flag or a rank-deficient W and cost ratio above `COST_RATIO_MAX` = {COST_RATIO_MAX} "
-        "(else `N-camera-jumps`)",
-        "the rotations are likely wrong, or the frames are not in time order.",
-        "put the frames in time order; if they are, treat the rotations as failed.",
-        dict(n=30, F=80, frac_max=0.1),
-    ),
-    "N-camera-jumps": Entry(
-        "the cameras turn by more than 90 degrees between consecutive frames ({n} of {F} frames "
-        "had their depth sign set by motion smoothness): an orthographic camera does not tell a "
-        "shape from its mirror image in depth, so each of these frames may show the mirror image; "
-        "nothing else in the run looks wrong; no action needed if the camera does jump",
-        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}, and no "
-        "`W-camera-jumps`",
-        "cameras and shapes are right up to each frame's depth sign (e_R counts mirrored frames).",
-        "none for unrelated views; for a video in time order, check the tracks.",
+        "the cameras jump: {n} of {F} frames had their depth sign set by motion smoothness "
+        "(warned above {frac_max:.0%}), as if the camera turned by more than 90 degrees between "
+        "frames; an orthographic camera does not tell a shape from its mirror image in depth, so "
+        "W does not determine these frames' rotations and each may be the mirror image; for a "
+        "video, check that the frames are in time order; for unrelated views, take each frame's "
+        "depth as unknown",
+        "`smoothness_sign_fraction` above `SIGN_FRACTION_MAX` = {SIGN_FRACTION_MAX}",
+        "rotations and camera-frame shapes are right at best up to each frame's depth sign "
+        "(e_R counts mirrored frames; e3d aligns each frame and does not).",
+        "put the frames in time order; for unrelated views no setting decides the depth signs.",
         dict(n=30, F=80, frac_max=0.1),
     ),
     "W-static-camera": Entry(

@@ -174,28 +174,32 @@ def test_depth_amplification_reads_the_cameras_against_the_modes():
     assert np.isnan(depth_amplification(seq.rotations, 0 * seq.shapes, 2))
 
 
-def test_random_cameras_give_a_note_not_a_warning():
+def test_random_cameras_warn_that_the_depth_signs_are_not_determined():
     """A camera that really jumps between frames: the depth signs come from smoothness,
-    which cannot decide them (a mirror image per frame); a note, no warning."""
+    which cannot decide them (a mirror image per frame): one warning, W-camera-jumps, while
+    the shapes are right up to each frame's mirror (e3d factors it out)."""
     seq = data_tools.make_synthetic(F=80, P=30, K=2, motion="random", seed=2)
     res, caught = _run(seq.W, 2)
-    assert caught == [] and not res.diagnostics.flagged
-    assert any(n.startswith("N-camera-jumps: ") for n in res.diagnostics.notes)
+    assert [str(w.message) for w in caught] == [res.diagnostics.message]
+    assert res.diagnostics.flags[0].startswith("W-camera-jumps: the cameras jump: ")
     assert res.diagnostics.signals["smoothness_sign_fraction"] > D.SIGN_FRACTION_MAX
     assert nrsfm.e3d(res.shapes, seq.shapes) < 1e-6
+    assert nrsfm.rotation_error(res.rotations, seq.rotations) > 0.5  # mirrored frames
+    smooth = data_tools.make_synthetic(F=80, P=30, K=2, seed=2)
+    res, caught = _run(smooth.W, 2)
+    assert caught == [] and res.diagnostics.signals["smoothness_sign_fraction"] == 0
 
 
-def test_rank_deficient_w_on_random_cameras_with_an_exact_triplet_is_notes_only():
+def test_rank_deficient_w_on_random_cameras_with_an_exact_triplet_warns_only_the_jumps():
     """A rigid body plus a planar deformation (W of rank 5 < 3K = 6) seen by a camera that
-    jumps: the triplet fits W exactly, so the jumps are the mirror ambiguity and the rank
-    a note (as without the jumps); the deforming planar object, whose triplet does not fit,
-    still warns (test above)."""
+    jumps: the triplet fits W exactly, so the rank is a note (as without the jumps) and the
+    jumps the one warning; the deforming planar object, whose triplet does not fit, warns
+    more (test above)."""
     seq = data_tools.make_rank_deficient(motion="random", seed=0)
     res, caught = _run(seq.W, 2)
-    assert caught == [] and not res.diagnostics.flagged
-    notes = res.diagnostics.notes
-    assert any(n.startswith("N-camera-jumps: ") for n in notes)
-    assert any(n.startswith("N-rank-deficient") for n in notes)
+    assert len(caught) == 1
+    assert [f.split(":")[0] for f in res.diagnostics.flags] == ["W-camera-jumps"]
+    assert any(n.startswith("N-rank-deficient") for n in res.diagnostics.notes)
     assert res.diagnostics.signals["numerical_rank"] == 5
     assert nrsfm.e3d(res.shapes, seq.shapes) < 1e-6
 
