@@ -58,6 +58,7 @@ THRESHOLDS = dict(
     smoothness_sign_fraction=f"> {SIGN_FRACTION_MAX}",
     triplet_hits="< 2",
     looks_transposed="True",
+    triplet_unknowns="> 2F (8K - 3 at full rank)",
     depth_amplification=f"> {DEPTH_AMPLIFICATION_MAX} with noise_level > {DEPTH_NOISE_MIN:g}",
 )
 
@@ -200,6 +201,13 @@ def _rotation_signals(W, K, fact, rotation_stage, seed, sig, flags, notes):
     twoF, P = W.shape
     F = twoF // 2
     full_rank = sig["numerical_rank"] >= 3 * K
+    # Dai's constraints give 2 equations per frame on the Gram G G^T of a triplet (rank 3 in
+    # r = 3K dimensions: 3r - 3 numbers, up to scale); the k true triplets span a (k - 1)-
+    # dimensional family of solutions, so 2F below 3r - k - 3 (8K - 3) leaves it undetermined
+    r, k = min(rotation_stage.determined_rank, 3 * K), rotation_stage.effective_K
+    need = sig["triplet_unknowns"] = 3 * r - k - 3
+    if twoF < need:
+        flags.append(text("W-few-frames", F=F, twoF=twoF, need=need, K=K, k_max=(twoF + 3) // 8))
     cost = float(rotation_stage.search.costs[0])
     M_hat = fact.M_hat
     pred = predicted_triplet_cost(

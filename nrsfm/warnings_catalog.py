@@ -113,6 +113,15 @@ CATALOG = {
             amp_max=8.0,
         ),
     ),
+    "W-few-frames": Entry(
+        "too few frames for K = {K}: the {F} frames give 2F = {twoF} equations on the corrective "
+        "triplet, which needs {need} (8K - 3 at full rank), so W does not determine the rotations "
+        "and they may be wrong; use K <= {k_max} or more frames",
+        "`triplet_unknowns` (3r - k - 3 for W's rank r <= 3K and k triplets) above 2F",
+        "Dai's orthonormality constraints leave the triplet, hence the cameras, undetermined.",
+        "lower K to at most (2F + 3) / 8, or add frames.",
+        dict(F=17, twoF=34, need=45, K=6, k_max=4),
+    ),
     "W-triplet-unconfirmed": Entry(
         "only {hits} of {n_starts} starts of the corrective-triplet search reached its best "
         "solution, so it was never confirmed and may be a poor one; try more starts "

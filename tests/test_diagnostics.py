@@ -228,3 +228,16 @@ def test_an_infinite_depth_amplification_reads_in_words():
     d = D.diagnose(seq.W, 2, factorize(seq.W, 2), depth_amplification=np.inf)
     (flag,) = [f for f in d.flags if f.startswith("W-depth-undetermined: ")]
     assert "no camera sees one of its directions" in flag and "inf" not in flag
+
+
+def test_too_few_frames_for_k_warns_and_names_the_largest_k():
+    """2F below 8K - 3 equations leaves Dai's triplet undetermined (F = 17, K = 6: e_R .15
+    on noise-free data, no warning before); F = 17, K = 4 (34 >= 29) is exact and silent."""
+    seq = data_tools.make_synthetic(F=17, P=49, K=6, seed=0)
+    res, caught = _run(seq.W, 6)
+    assert len(caught) == 1 and "W-few-frames: too few frames for K = 6" in res.diagnostics.message
+    assert "use K <= 4" in res.diagnostics.message
+    assert res.diagnostics.signals["triplet_unknowns"] == 45
+    seq = data_tools.make_synthetic(F=17, P=49, K=4, seed=0)
+    res, caught = _run(seq.W, 4)
+    assert caught == [] and res.errors(seq.shapes, rotations_gt=seq.rotations)["e_R"] < 1e-4
