@@ -187,8 +187,9 @@ def diagnose(W, K, factorization, rotation_stage=None, seed=0, depth_amplificati
         # with a confirmed triplet that fits at the noise level not a failure by itself (a
         # note), otherwise a flag and the named cause of the other flags (of the jumps too,
         # if the triplet does not fit: alone they are the mirror ambiguity)
+        jumps_only = all(f.startswith("W-camera-jumps") for f in flags)
         fits = sig.get("triplet_cost_ratio", 0.0) <= COST_RATIO_MAX
-        if rotation_stage is None or any(f[:14] != "W-camera-jumps" or not fits for f in flags):
+        if rotation_stage is None or (flags and not (jumps_only and fits)):
             flags.insert(0, text("W-rank-deficient", rank=rank, K=K, r=r, rtol=RANK_RTOL))
         else:
             k_eff = rotation_stage.effective_K
