@@ -46,7 +46,7 @@ def _interactive():
 
 def show_recording(path, width=1000, height=720, blueprint=None):
     """Embed a viewer of the ``.rrd`` at ``path`` in a live notebook, else print how to open
-    it; returns True when a viewer was embedded.
+    it (returns nothing: a notebook cell that ends with it shows no value).
 
     The file is sent as it is (its blueprint, under its own application id; ``blueprint``
     replaces it); the viewer's code is inlined from the installed ``rerun-notebook`` (works
@@ -67,11 +67,10 @@ def show_recording(path, width=1000, height=720, blueprint=None):
                     viewer.set_application_blueprint(app, blueprint)
             viewer.display()
             viewer._viewer.send_rrd(path.read_bytes())
-            return True
+            return
         except Exception as exc:  # the viewer is optional: never break a run for it
             print(f"(no embedded viewer: {exc})")
     shown = shown_path(path)
     print(
         f"open the recording with: rerun {shown}   (headless or remote: rerun --web-viewer {shown})"
     )
-    return False
