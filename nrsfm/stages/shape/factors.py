@@ -330,7 +330,11 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
     carried through that change of basis (``s -> s M``, ``y -> y M^-T``). With
     ``prune_rtol``, aligned columns whose singular value is at most ``prune_rtol`` times the
     largest are dropped at a restart (the last ones: ``reduced`` reads the weights of the
-    first ``B.shape[1]`` columns).
+    first ``B.shape[1]`` columns). It stops at ``gtol``, at ``max_iter``, where no descent
+    is possible, or after a segment that did not lower E (its steps all within E's
+    rounding): where the data term's infimum is not attained (W that the rotations do not
+    explain, the organic prior's first column free) E creeps down by rounding-level steps
+    while a factor grows, and more iterations would only move the answer along that valley.
 
     ``problem`` holds ``reduced(B)``, which returns ``(C, (E, data, dE/dB, dE/dC))`` at ``C =
     argmin_C E(B, C)`` (:func:`reduced_objective`), ``Pi`` (F, 3, 3) = ``R_f'R_f``, ``reg``
@@ -352,6 +356,7 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
     n_iter, S, Y = 0, [], []
     e_tol = E_ROUNDING * abs(vals[0])
     while rel > gtol and n_iter < max_iter:
+        E_start = vals[0]
         _, Linv = frame_preconditioner(C, Pi, reg[: B.shape[1]])
         failed = False  # a line search found no decrease
         for _ in range(min(segment, max_iter - n_iter)):
@@ -377,8 +382,8 @@ def minimise(B, problem, prune_rtol=None, segment=SEGMENT):
         B, keep, M, Mt = _aligned(B, C, prune_rtol)
         C, vals = reduced(B)
         rel = relative_gradient(B, C, vals[2], vals[3])
-        if failed and not S:  # no descent possible (rounding)
-            break
+        if (failed and not S) or vals[0] >= E_start:  # no descent possible, or a segment
+            break  # that did not lower E (its steps within E's rounding): E is at its floor
         carry = not failed and keep == r and M is not None
         S, Y = ([s_ @ M for s_ in S], [y_ @ Mt for y_ in Y]) if carry else ([], [])
     return B, C, rel, n_iter
