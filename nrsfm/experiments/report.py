@@ -88,8 +88,9 @@ class Table:
         self.name, self.title, self.note = name, title, note
         self.columns, self.rows = list(columns), [list(r) for r in rows]
 
-    def markdown(self):
-        lines = [f"### {self.title}", ""] + ([self.note, ""] if self.note else [])
+    def markdown(self, level=1):
+        """The table as Markdown under a heading of ``level`` (1 on its own page)."""
+        lines = [f"{'#' * level} {self.title}", ""] + ([self.note, ""] if self.note else [])
         lines += ["| " + " | ".join(self.columns) + " |", "|" + "---|" * len(self.columns)]
         lines += ["| " + " | ".join(map(_fmt, r)) + " |" for r in self.rows]
         return "\n".join(lines) + "\n"
@@ -369,6 +370,6 @@ def write_report(out, plan, results, sequences, header=""):
             fig.savefig(out / f"{name}.png", dpi=90)
             plt.close(fig)
     pngs = [f"{name}.png" for name in figures]
-    doc = ([header] if header else []) + [t.markdown() for t in tables]
+    doc = ([header] if header else []) + [t.markdown(level=2) for t in tables]
     write_text(out / "README.md", "\n".join(doc + [f"![{p[:-4]}]({p})\n" for p in pngs]))
     return files + pngs + ["README.md"], tables
