@@ -16,7 +16,7 @@ import scipy.io
 from nrsfm import paths
 from nrsfm.sequence import Sequence
 
-#: The shape-basis sizes K the organic-priors paper uses (its Table 1).
+#: The shape-basis sizes K the organic-priors paper uses (its Table 2).
 MOCAP_K = {
     "drink": 12,
     "pickup": 12,

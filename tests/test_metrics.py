@@ -7,7 +7,7 @@ import nrsfm
 from nrsfm.metrics import e3d, e3d_akhter, rotation_error
 from nrsfm.stages.shape import pseudo_inverse_shapes, truncate_rank
 
-# The paper's Table 2 "Ours-PI" row (pseudo-inverse shape), reproduced from ground-truth
+# The paper's Table 1 "Ours-PI" row (pseudo-inverse shape), reproduced from ground-truth
 # rotations with the rank-K truncation of X_init#.
 OURS_PI = {"drink": 0.2195, "pickup": 0.2985, "yoga": 0.2740, "stretch": 0.2238}
 

@@ -17,7 +17,7 @@
 #
 # $2F$ equations linear in the $3K(3K+1)/2$ entries of the symmetric $\mathbf Q$. Their
 # solution space has dimension $2K^2-K$ (Akhter et al.; Dai et al.'s intersection theorem,
-# Fig. 2 (a)-(b) of the paper). Dai et al. pick the point of minimum nuclear norm (trace on
+# Fig. 1 (a)-(b) of the paper). Dai et al. pick the point of minimum nuclear norm (trace on
 # the PSD cone) in it, take $\mathbf G$ from its top-3 eigenpairs and refine $\mathbf G$ by
 # minimising
 # $\sum_f(1-\|\mathbf r_2\|^2/\|\mathbf r_1\|^2)^2+4\sum_f(\mathbf r_1\cdot\mathbf r_2/\|\mathbf r_1\|^2)^2$.
@@ -239,7 +239,7 @@ else:
 # ## Under track noise: one relaxation is not enough, the search is
 #
 # With Gaussian noise on W of 25% of its mean row standard deviation (the top of the range of
-# the paper's Fig. 3a), the penalised relaxation at one penalty ($\lambda=100$) refines into
+# the paper's Fig. 4a), the penalised relaxation at one penalty ($\lambda=100$) refines into
 # a bad minimum of Dai's cost. The search (`search_triplet`) tries the relaxation at two
 # penalties and then seeded random starts, and stops when the lowest cost has been reached
 # by two starts: it ends in a much cheaper minimum with a far smaller e_R (the cell below

@@ -1,7 +1,7 @@
 # %% [markdown]
 # # 03 · Rotations per triplet: lifting, sign and handedness, registration, filtering
 #
-# Paper Sec. 3.1, Fig. 2 (b)-(d). Each corrective triplet $\mathbf G^k$ (notebook 02) gives a
+# Paper Sec. 3.1, Fig. 1 (b)-(d). Each corrective triplet $\mathbf G^k$ (notebook 02) gives a
 # camera per frame, $\hat{\mathbf M}_f\mathbf G^k=c_{fk}\mathbf R_f$ (a $2\times3$ block).
 #
 # 1. **Lifting** to $SO(3)$: scale the two rows to unit length, complete with

@@ -3,8 +3,8 @@
 #
 # The 8-sequence MoCap benchmark (Akhter et al.: drink, pickup, yoga, stretch, dance;
 # Torresani et al.: face, walking, shark), with the paper's $K$ per sequence
-# (`data_tools.MOCAP_K`, Table 1). Metrics (Sec. 4, `nrsfm.metrics`): `e3d` (per-frame
-# similarity Procrustes, relative Frobenius error) and `e_R` (Table 4, one global
+# (`data_tools.MOCAP_K`, Table 2). Metrics (Sec. 4, `nrsfm.metrics`): `e3d` (per-frame
+# similarity Procrustes, relative Frobenius error) and `e_R` (Table 5, one global
 # alignment, spectral norm per frame). The published figures come with the package
 # (`nrsfm.published`, a data file that names its source for every table).
 #
@@ -20,7 +20,7 @@
 #   which have them): the check that the shape stage (default solver) is right, free of
 #   rotation errors;
 # * `PI | GT R`: the pseudo-inverse shape on the ground-truth rotations, which reproduces
-#   the paper's "Ours-PI" row (Table 2) exactly.
+#   the paper's "Ours-PI" row (Table 1) exactly.
 #
 # Face, walking and shark have no camera ground truth (their motion is inside the shape),
 # so only the full pipeline can run on them. The benchmark data is read from

@@ -3,9 +3,9 @@
 #
 # `nrsfm benchmark` regenerates the paper's experiments (Sec. 4) as Markdown and CSV tables
 # and PNG plots: the MoCap table beside the paper's figures and Dai et al.'s code run by a
-# peer, Table 1 (pseudo-inverse shapes), Table 3 (rotation ablation, with ground-truth
-# rotations as a row), noise on pickup (Fig. 3a-b), missing data (Fig. 3c), the N ablation
-# (Fig. 3d), a K sweep, and the study behind the shape stage's default.
+# peer, Table 1 (pseudo-inverse shapes), Table 6 (rotation ablation, with ground-truth
+# rotations as a row), noise on pickup (Fig. 4a-b), missing data (Fig. 4c), the N ablation
+# (Fig. 4d), a K sweep, and the study behind the shape stage's default.
 #
 # ```bash
 # nrsfm benchmark --data $NRSFM_DATA/mocap --out out/bench            # full set
@@ -132,7 +132,7 @@ for row in missing.rows:
         assert r["ratio"] < 1.5  # acceptance: within 1.5x (measured 1.03)
 
 # %% [markdown]
-# ## N ablation (Fig. 3d)
+# ## N ablation (Fig. 4d)
 
 # %%
 display(Image(filename=str(OUT / "n_ablation.png")))

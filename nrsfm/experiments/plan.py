@@ -12,13 +12,13 @@ EXPERIMENTS = {
     "peer's run of Dai et al.'s code",
     "pseudo_inverse": "Table 1: rank-K pseudo-inverse shape (ground-truth rotations where "
     "they exist)",
-    "rotation_ablation": "Table 3: the organic shape stage on BMM, organic and ground-truth "
+    "rotation_ablation": "Table 6: the organic shape stage on BMM, organic and ground-truth "
     "rotations",
-    "noise": "Fig. 3a-b: noise on pickup, e_R and e3d, mean and std over runs",
-    "missing": "Fig. 3c: 30% missing (uniform and tracking) on every sequence, and a 10-60% "
+    "noise": "Fig. 4a-b: noise on pickup, e_R and e3d, mean and std over runs",
+    "missing": "Fig. 4c: 30% missing (uniform and tracking) on every sequence, and a 10-60% "
     "curve on pickup; the lost-tracks table (e3d of the seen points, fill errors, the flag, "
     "a rigid-neighbour baseline) per pattern",
-    "n_ablation": "Fig. 3d: the shape stage's N = 0..5",
+    "n_ablation": "Fig. 4d: the shape stage's N = 0..5",
     "k_sweep": "e3d as a function of K per sequence",
     "shape": "the shape stage alone on ground-truth rotations, per formulation: clean and "
     "noisy MoCap, rank-deficient and exactly rank-K shapes, back with a moving camera",

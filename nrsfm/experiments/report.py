@@ -45,18 +45,18 @@ SPECS = {
         "organic rotation stage's.",
     ),
     "rotation_ablation": (
-        "Table 3: rotation ablation (organic shape stage on each rotation)",
+        "Table 6: rotation ablation (organic shape stage on each rotation)",
         "rotations",
         "Every e3d row runs the same organic shape stage; only the rotations differ.",
     ),
     "noise": (
-        "Noise on {} (Fig. 3a-b)",
+        "Noise on {} (Fig. 4a-b)",
         "sigma|method|runs|e_R mean|e_R std|e3d mean|e3d std",
         "Gaussian noise on W with std sigma x (mean row std of W); each run its own seed, the "
         "same noise for every method.",
     ),
     "missing": (
-        "Missing data (30%, Fig. 3c)",
+        "Missing data (30%, Fig. 4c)",
         "sequence|pattern|method|missing|fill error|e3d|complete-data e3d|ratio|e_R|"
         "s completion|s total",
         "uniform: each point-frame missing with probability 0.3; tracking: each track lost "
@@ -69,7 +69,7 @@ SPECS = {
         "",
     ),
     "n_ablation": (
-        "N ablation (Fig. 3d): e3d, same organic rotations",
+        "N ablation (Fig. 4d): e3d, same organic rotations",
         "sequence",
         "N = 0 penalises every singular value (weighted nuclear norm); the paper uses N = 1.",
     ),

@@ -114,7 +114,7 @@ def run_pseudo_inverse(sequence, seed=0, data=None):
 
 
 def run_rotation_ablation(sequence, rotations, seed=0, data=None):
-    """Table 3: the organic shape stage on rotations from ``bmm``, ``organic`` or GT."""
+    """Table 6: the organic shape stage on rotations from ``bmm``, ``organic`` or GT."""
     seq = load_sequence(sequence, data)
     t0 = time.perf_counter()
     if rotations == "ground_truth":
@@ -133,7 +133,7 @@ def run_rotation_ablation(sequence, rotations, seed=0, data=None):
 
 
 def run_noise(sequence, method, sigma, run, seed=0, data=None):
-    """Fig. 3a-b: Gaussian noise of std ``sigma x mean row std of W``, seeded by ``run``."""
+    """Fig. 4a-b: Gaussian noise of std ``sigma x mean row std of W``, seeded by ``run``."""
     import data_tools
 
     seq = load_sequence(sequence, data)
@@ -144,7 +144,7 @@ def run_noise(sequence, method, sigma, run, seed=0, data=None):
 
 
 def run_missing(sequence, method, pattern, fraction, run=0, seed=0, data=None):
-    """Fig. 3c: observations removed (``uniform`` or ``tracking``), completed, reconstructed;
+    """Fig. 4c: observations removed (``uniform`` or ``tracking``), completed, reconstructed;
     ``fill_error`` = ||W_completed - W|| / ||W|| over the missing entries."""
     import data_tools
 
@@ -177,7 +177,7 @@ def run_missing_tracks(sequence, pattern, fraction, drop_seed, seed=0, data=None
 
 
 def run_n_ablation(sequence, Ns, seed=0, data=None):
-    """Fig. 3d: the paper's ADMM shape stage with N = 0..5 (its number of unpenalised
+    """Fig. 4d: the paper's ADMM shape stage with N = 0..5 (its number of unpenalised
     singular values) on the same organic rotations."""
     from nrsfm import AdmmSettings
 

@@ -44,7 +44,7 @@ class AdmmSettings:
     ----------
     N : int or None
         Leading singular values left unpenalised; default from the prior
-        (:data:`nrsfm.stages.shape.PRIORS`). The paper's ablation varies it (Fig. 3d).
+        (:data:`nrsfm.stages.shape.PRIORS`). The paper's ablation varies it (Fig. 4d).
     mu : float
         Weight of the regulariser (paper: 1).
     rho0, lam, rho_max : float
