@@ -26,7 +26,53 @@ DOCS = HERE.parent / "docs" / "notebooks"
 KERNEL = {"display_name": "Python 3", "language": "python", "name": "python3"}
 
 
-def build(src: Path) -> tuple[Path, str]:
+#: a code cell whose first line is this has its output compared by nbval (lax mode) with
+#: the output stored in the .ipynb by the last ``--render``
+CHECK_MARK = "# NBVAL_CHECK_OUTPUT"
+#: cells with these tags run (in the tests and the render) but are not on the rendered page:
+#: the exercises' answers and the checks of what the prose says
+HIDDEN = {"answers", "checks"}
+#: the warning filter of every kernel the tests and ``--render`` start: a warning a
+#: notebook does not catch (and explain) fails the cell
+KERNEL_STARTUP = (
+    "import warnings\n\nwarnings.simplefilter('error')\n"
+    "# the kernel's own shutdown message (ipykernel 7), not the notebook's code\n"
+    "warnings.filterwarnings('ignore', category=PendingDeprecationWarning, module='ipykernel')\n"
+)
+
+
+def strict_ipython_dir() -> str:
+    """An IPython folder (for ``IPYTHONDIR``) whose startup file makes warnings errors."""
+    import atexit
+    import shutil
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="nrsfm-ipython-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    startup = folder / "profile_default" / "startup"
+    startup.mkdir(parents=True)
+    (startup / "00-warnings-are-errors.py").write_text(KERNEL_STARTUP)
+    return str(folder)
+
+
+def _checked(cell) -> bool:
+    return cell.cell_type == "code" and cell.source.startswith(CHECK_MARK)
+
+
+def _kept_outputs(dst: Path) -> dict:
+    """The stored outputs of the checked cells of ``dst``: {(id, source): outputs}."""
+    if not dst.is_file():
+        return {}
+    nb = nbformat.read(dst, as_version=4)
+    return {(c.id, c.source): c.outputs for c in nb.cells if _checked(c) and c.outputs}
+
+
+def build(src: Path, outputs: dict | None = None) -> tuple[Path, str]:
+    """The .ipynb of ``src`` (path, text): outputs stripped, except those of the checked
+    cells (``CHECK_MARK``), taken from ``outputs`` or else from the committed .ipynb when
+    the cell's source is unchanged."""
+    dst = HERE / f"{src.stem}.ipynb"
+    kept = _kept_outputs(dst) if outputs is None else outputs
     nb = jupytext.read(src, fmt="py:percent")
     nb.metadata = {"kernelspec": KERNEL, "language_info": {"name": "python"}}
     for i, cell in enumerate(nb.cells):
@@ -34,8 +80,25 @@ def build(src: Path) -> tuple[Path, str]:
         cell.metadata = {k: v for k, v in cell.metadata.items() if k == "tags"}
         if cell.cell_type == "code":
             cell.outputs, cell.execution_count = [], None
+            if _checked(cell):
+                cell.outputs = kept.get((cell.id, cell.source), [])
+                if cell.outputs:  # nbval compares only cells marked as run
+                    cell.execution_count = i + 1
     text = nbformat.writes(nb, version=4) + "\n"
-    return HERE / f"{src.stem}.ipynb", text
+    return dst, text
+
+
+def _clean(outputs):
+    """Outputs as stored: no execution counts or metadata that change between runs."""
+    kept = []
+    for out in outputs:
+        out = nbformat.from_dict(dict(out))
+        if "execution_count" in out:
+            out.execution_count = None
+        if "metadata" in out:
+            out.metadata = {}
+        kept.append(out)
+    return kept
 
 
 def source_hash(src: Path) -> str:
@@ -51,10 +114,12 @@ def render(src: Path, timeout: int = 1200) -> Path:
     import nbformat
     from nbclient import NotebookClient
     from nbconvert import MarkdownExporter
+    from nbconvert.preprocessors import TagRemovePreprocessor
 
-    _, text = build(src)
+    _, text = build(src, outputs={})
     nb = nbformat.reads(text, as_version=4)
     os.environ["NRSFM_VIEWER"] = "0"  # inherited by the kernel
+    os.environ["IPYTHONDIR"] = strict_ipython_dir()  # warnings are errors, as in the tests
     # the kernel runs in notebooks/: import this checkout's packages, absolute paths
     entries = [str(HERE.parent)] + [
         str(Path(p).resolve()) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p
@@ -63,9 +128,9 @@ def render(src: Path, timeout: int = 1200) -> Path:
     NotebookClient(
         nb, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(HERE)}}
     ).execute()
-    body, res = MarkdownExporter().from_notebook_node(
-        nb, resources={"output_files_dir": f"{src.stem}_files"}
-    )
+    exporter = MarkdownExporter()
+    exporter.register_preprocessor(TagRemovePreprocessor(remove_cell_tags=HIDDEN), enabled=True)
+    body, res = exporter.from_notebook_node(nb, resources={"output_files_dir": f"{src.stem}_files"})
     DOCS.mkdir(parents=True, exist_ok=True)
     shutil.rmtree(DOCS / f"{src.stem}_files", ignore_errors=True)
     for name, data in res.get("outputs", {}).items():
@@ -73,12 +138,16 @@ def render(src: Path, timeout: int = 1200) -> Path:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_bytes(data)
     body = body.replace(str(HERE.parent) + os.sep, "")  # no machine paths in the docs
+    body = body.replace("](../docs/notebooks/", "](")  # images beside the rendered page
     head = (
         f"<!-- rendered by `python notebooks/build_notebooks.py --render` from "
         f"notebooks/src/{src.name} sha256={source_hash(src)}; do not edit -->\n\n"
     )
     page = DOCS / f"{src.stem}.md"
     page.write_text(head + body)
+    outputs = {(c.id, c.source): _clean(c.outputs) for c in nb.cells if _checked(c)}
+    dst, text = build(src, outputs=outputs)
+    dst.write_text(text)  # the checked cells' outputs, for nbval to compare
     return page
 
 

@@ -6,7 +6,15 @@ root) absolute first, so the kernels inherit paths that still point at the same 
 for any code that reads the variables directly.)"""
 
 import os
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from build_notebooks import strict_ipython_dir  # noqa: E402
+
+# every kernel starts with warnings as errors: a warning a notebook does not catch (and
+# explain) fails its cell, as warnings fail the rest of the test run
+os.environ["IPYTHONDIR"] = strict_ipython_dir()
 
 for _name in ("NRSFM_DATA", "NRSFM_OUT"):
     _value = os.environ.get(_name)

@@ -147,7 +147,7 @@ plt.show()
 #
 # `nrsfm.views.save_recording` writes everything: shapes and cameras per frame
 # (timeline `frame`), the rotation samples of every triplet, the shape solver's history
-# (timeline `admm_iteration`; here a single entry), singular values as bar charts and a
+# (timeline `shape_iteration`; here a single entry), singular values as bar charts and a
 # markdown report. Open it with `rerun <path>`; in an interactive notebook with
 # `rerun-notebook` installed it is embedded below (headless and CI runs only print the path).
 

@@ -82,7 +82,7 @@ def _right_column(rrb, content):
         name = (
             "shape cost" if n == "cost" else ("log10 " * (n in HISTORY_LOG) + n).replace("_", " ")
         )
-        path = f"/admm_history/{n}"
+        path = f"/shape_history_bars/{n}"
         history.append(rrb.BarChartView(origin=path, name=name, plot_legend=no_legend))
     spectra = []
     titles = dict(W="singular values of W", X_init="singular values of X_init#")

@@ -21,8 +21,8 @@ given are left out):
   ``/rotation_samples/sign_from_smoothness``: Scalars [frame]
 * ``/errors/e3d``, ``/errors/e_R``: Scalars [frame]
 * ``/image/measured``, ``/image/reprojected``: Points2D, ``W_f`` and ``R_f X_f`` [frame]
-* ``/admm/{cost,data_term,residual,rho,grad_norm}``: the shape-stage history, Scalars
-  [admm_iteration]; ``/admm_history/...``: the same as BarCharts (log10 but the cost)
+* ``/shape_history/{cost,data_term,residual,rho,grad_norm}``: the shape-stage history, Scalars
+  [shape_iteration]; ``/shape_history_bars/...``: the same as BarCharts (log10 but the cost)
   [static]
 * ``/singular_values/{W,X_init,theta,log10_theta}``: BarChart [static]
 * ``/run/report``: TextDocument, markdown [static]
@@ -41,8 +41,8 @@ from .blueprint import HISTORY_LOG, make_blueprint
 from .content import HISTORY_KEYS, recording_content
 
 #: Top-level entity paths written (sub-paths depend on the stages that ran).
-ENTITY_PATHS = ("/world", "/rotations", "/rotation_samples", "/errors", "/image", "/admm")
-ENTITY_PATHS += ("/admm_history", "/singular_values", "/run")
+ENTITY_PATHS = ("/world", "/rotations", "/rotation_samples", "/errors", "/image")
+ENTITY_PATHS += ("/shape_history", "/shape_history_bars", "/singular_values", "/run")
 
 ESTIMATE_COLOR = (255, 140, 0, 255)
 GT_COLOR = (70, 130, 255, 255)
@@ -167,11 +167,11 @@ def _log_series(rec, rr, c):
     # timeline (log10 where the values span decades)
     for name, v in c.admm.items():
         it = np.arange(v.size)
-        rl.send_scalars(rec, rr, f"/admm/{name}", v, it, "admm_iteration", name)
+        rl.send_scalars(rec, rr, f"/shape_history/{name}", v, it, "shape_iteration", name)
         if name in HISTORY_KEYS:
             bars = rl.log10(v) if name in HISTORY_LOG else v
             color = ESTIMATE_COLOR if name == "cost" else (90, 90, 200, 255)
-            rl.send_bars(rec, rr, f"/admm_history/{name}", bars, abscissa=it, color=color)
+            rl.send_bars(rec, rr, f"/shape_history_bars/{name}", bars, abscissa=it, color=color)
     for name, v in c.singular_values.items():
         rec.log(f"/singular_values/{name}", rr.BarChart(v), static=True)
     if "theta" in c.singular_values:
@@ -200,23 +200,41 @@ def recording_id_of(result):
     return str(uuid.UUID(h.hexdigest()[:32]))
 
 
-def build_recording(result, sequence=None, *, application_id="nrsfm", recording_id=None):
+def build_recording(
+    result, sequence=None, *, application_id="nrsfm", recording_id=None, blueprint=None
+):
     """A ``rerun.RecordingStream`` holding the run of ``result`` (a :class:`nrsfm.
-    Reconstruction`, with the ground truth ``sequence`` overlaid), its default blueprint
-    sent, buffered until a sink is attached (``rec.save(path)``, ``rec.spawn()``)."""
+    Reconstruction`, with the ground truth ``sequence`` overlaid), its blueprint sent (the
+    default layout, or ``blueprint``), buffered until a sink is attached
+    (``rec.save(path)``, ``rec.spawn()``); more can be logged to it before."""
     content = recording_content(result, sequence)
     rec = rl.new_stream(application_id, recording_id or recording_id_of(result))
-    rl.send_blueprint(rec, make_blueprint(content))
+    rl.send_blueprint(rec, make_blueprint(content) if blueprint is None else blueprint)
     log_content(rec, content)
     return rec
 
 
-def save_recording(result, path, sequence=None, *, application_id="nrsfm", recording_id=None):
+def save_recording(
+    result,
+    path,
+    sequence=None,
+    *,
+    application_id="nrsfm",
+    recording_id=None,
+    blueprint=None,
+    extra=None,
+):
     """Write the recording of ``result`` (with the ground truth ``sequence``) to the ``.rrd``
     file ``path`` (parent folders created) and return its Path; the stream is closed and its
-    threads released, so repeated calls do not accumulate threads."""
+    threads released, so repeated calls do not accumulate threads.
+
+    ``blueprint`` (a ``rerun.blueprint.Blueprint``) replaces the default layout; ``extra``,
+    a function of the open stream, logs more entities (a lesson's own series)."""
     content = recording_content(result, sequence)
     rid = recording_id or recording_id_of(result)
-    with rl.rrd_stream(path, make_blueprint(content), application_id, rid) as rec:
+    layout = make_blueprint(content) if blueprint is None else blueprint
+    with rl.rrd_stream(path, layout, application_id, rid) as rec:
         log_content(rec, content)
+        if extra is not None:
+            extra(rec)
     return Path(path)
