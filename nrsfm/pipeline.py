@@ -186,8 +186,9 @@ class Reconstruction:
         return out
 
     def summary(self):
-        """A few lines describing the run: sizes, fit, missing data, the diagnostics' notes
-        (no action needed) and warnings, time."""
+        """A few lines describing the run: sizes, fit, missing data, the ids of the
+        diagnostics' notes (no action needed; their text is in ``diagnostics.notes``), the
+        warnings in full, time."""
         F, P = self.n_frames, self.n_points
         lines = [
             f"nrsfm {self.method}: F={F} frames, P={P} points, K={self.K}, scale={self.scale:.4g}",
@@ -204,7 +205,8 @@ class Reconstruction:
                 f"(the fills made from their neighbours and the model disagree)"
             )
         if self.diagnostics is not None:  # notes need no action; flags warned
-            lines += [f"  note: {n}" for n in self.diagnostics.notes]
+            ids = [n.split(":", 1)[0] for n in self.diagnostics.notes]  # the text: .notes
+            lines += [f"  notes (no action needed): {', '.join(ids)}"] if ids else []
             lines += [f"  WARNING: {f}" for f in self.diagnostics.flags]
         t = ", ".join(f"{k} {v:.3f}s" for k, v in self.timings.items())
         lines.append(f"  time: {t}")

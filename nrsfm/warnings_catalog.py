@@ -268,7 +268,8 @@ this file.
 Every message starts with its id. Ids `W-...` are warnings: the result may be wrong, and the
 entry says what to try. Ids `N-...` are notes: observations that need no action, kept in
 `result.diagnostics.notes`, in the diagnostics summary (`result.diagnostics.summary()`, the
-recording's report) and printed by the CLI as `note:` lines; they are never Python warnings.
+recording's report); the summary the CLI prints names them by id on one `notes` line. They
+are never Python warnings.
 
 The diagnostics' warnings of one run come as one `nrsfm.NRSfMWarning` whose message is
 `{UNRELIABLE.strip()}` followed by each warning's message, separated by `; `

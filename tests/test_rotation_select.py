@@ -69,7 +69,7 @@ def test_rigid_plus_planar_exact_in_any_units(K, units):
     d = res.diagnostics
     assert d.signals["numerical_rank"] == 5 and not caught
     assert any(n.startswith("N-rank-deficient-subspace: W has only 5 ") for n in d.notes)
-    assert "  note: N-rank-deficient-subspace: " in res.summary()  # the summary shows it
+    assert "  notes (no action needed): N-rank-deficient-subspace\n" in res.summary()
 
 
 @pytest.mark.parametrize("K_true,extra", [(1, 2), (2, 2), (3, 1)])
