@@ -15,12 +15,13 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the notebooks rewritten as lessons so far (the others keep their older form)
-LESSONS = ["01_measurement_svd"]
+LESSONS = ["01_measurement_svd", "07_experiments"]
 MAX_CELL_LINES = 25
 #: prose that cites rather than states a number (equations, sections, figures, notebooks)
+_REF = r"\(?\d+(?:\.\d+)*[a-z]?\)?"
 CITATION = re.compile(
-    r"(Eqs?\.|Sec\.|Secs\.|Fig\.|Figs\.|Table|Algorithm|notebook|Notebook|lesson|ECCV|CVPR"
-    r"|PAMI|NIPS|ICCV|et al\.)\s*\(?[\dA-Za-z.,\- ()]*?\d+\)?"
+    r"(Eqs?\.|Secs?\.|Figs?\.|Tables?|Algorithm|[Nn]otebooks?|[Ll]essons?|ECCV|CVPR|PAMI"
+    r"|NIPS|ICCV|et al\.,?)\s*" + _REF + r"(?:\s*(?:-|,|and|\()\s*[a-z]?" + _REF + r"\)?)*"
 )
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
