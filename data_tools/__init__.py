@@ -8,6 +8,7 @@ from .noise import add_noise, drop_tracks
 from .reprojection import parse_path, reproject, validation_set
 from .synthetic import (
     MOTIONS,
+    PerspectiveCamera,
     camera_rotations,
     default_sequence,
     make_rank_deficient,
@@ -45,6 +46,7 @@ __all__ = [
     "load_mocap",
     "make_rank_deficient",
     "make_synthetic",
+    "PerspectiveCamera",
     "mocap_dir",
     "read_frames",
     "tracks_from_frames",

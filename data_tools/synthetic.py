@@ -1,6 +1,9 @@
-"""Synthetic deforming sequences with known ground truth (low-rank shape, orthographic camera)."""
+"""Synthetic deforming sequences with known ground truth (low-rank shape; an orthographic
+camera, or a pinhole camera at a given distance)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -54,8 +57,67 @@ def camera_rotations(F, motion="smooth", rng=None):
     return Rotation.concatenate(out).as_matrix()
 
 
+@dataclass(frozen=True)
+class PerspectiveCamera:
+    """A pinhole camera for :func:`make_synthetic`.
+
+    Attributes
+    ----------
+    distance : float
+        Distance from the camera centre to the shapes' centroid, in units of the shapes'
+        radius (the largest distance of a point from the centroid over all frames), so above
+        1 every point is in front of the camera; at 50 the view is close to orthographic, at
+        2 to 5 strongly perspective.
+    focal : float
+        Focal length in pixels.
+    principal : (float, float)
+        Principal point (x, y) in pixels.
+
+    Raises
+    ------
+    ValueError
+        ``distance`` not above 1, ``focal`` not positive, ``principal`` not two numbers.
+
+    Examples
+    --------
+    >>> PerspectiveCamera(distance=3.0, focal=800.0).intrinsics[0]
+    array([800.,   0., 320.])
+    """
+
+    distance: float = 3.0
+    focal: float = 800.0
+    principal: tuple = (320.0, 240.0)
+
+    def __post_init__(self):
+        if not (np.isfinite(self.distance) and self.distance > 1):
+            raise ValueError(f"distance must be above 1 (object radii); got {self.distance!r}")
+        if not (np.isfinite(self.focal) and self.focal > 0):
+            raise ValueError(f"focal must be positive (pixels); got {self.focal!r}")
+        if np.shape(self.principal) != (2,) or not np.all(np.isfinite(self.principal)):
+            raise ValueError(f"principal must be two numbers (x, y); got {self.principal!r}")
+
+    @property
+    def intrinsics(self):
+        """(3, 3) ndarray: the camera matrix ``[[f, 0, cx], [0, f, cy], [0, 0, 1]]``."""
+        (cx, cy), f = self.principal, float(self.focal)
+        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+    def project(self, X_cam):
+        """Pixels (F, 2, P) of camera-frame points (F, 3, P) whose depths are positive."""
+        uv = X_cam[:, :2] / X_cam[:, 2:3]
+        return self.focal * uv + np.asarray(self.principal, float)[None, :, None]
+
+
 def make_synthetic(
-    F=120, P=40, K=3, motion="smooth", noise=0.0, deformation=0.4, seed=0, name=None
+    F=120,
+    P=40,
+    K=3,
+    motion="smooth",
+    noise=0.0,
+    deformation=0.4,
+    seed=0,
+    name=None,
+    camera=None,
 ):
     """A seeded synthetic NRSfM sequence with ground truth.
 
@@ -74,13 +136,23 @@ def make_synthetic(
     deformation : float
         Size of the deformation modes relative to the mean shape.
     seed : int
+    camera : PerspectiveCamera or None
+        None: an orthographic camera (W centred, in the shapes' units). A
+        :class:`PerspectiveCamera`: the shapes seen by a pinhole camera at its distance, W in
+        pixels (not centred; the same draws of shapes and rotations as without it).
 
     Returns
     -------
     Sequence
-        ``W`` (2F, P) centred; ``shapes`` (F, 3, P) in the camera frame; ``rotations``;
-        ``world_shapes``; ``extra`` holds ``basis`` (K, 3, P), ``coefficients`` (F, K) and
-        ``W_clean``.
+        ``W`` (2F, P); ``shapes`` (F, 3, P) in the camera frame (centred); ``rotations``;
+        ``world_shapes``; ``extra`` holds ``basis`` (K, 3, P), ``coefficients`` (F, K),
+        ``W_clean``, and with a camera ``intrinsics`` (3, 3) and ``depth`` (the centroid's
+        distance in the shapes' units).
+
+    Raises
+    ------
+    ValueError
+        ``3K > min(2F, P)``.
     """
     if 3 * K > min(2 * F, P):
         raise ValueError(f"K={K} too large for F={F}, P={P}: need 3K <= min(2F, P)")
@@ -96,11 +168,19 @@ def make_synthetic(
     world = np.einsum("fk,kip->fip", coeff, basis)
     R = camera_rotations(F, motion, rng)
     cam = R @ world
-    W_clean = cam[:, :2].reshape(2 * F, P)
+    extra = {}
+    if camera is None:
+        W_clean = cam[:, :2].reshape(2 * F, P)
+    else:
+        depth = camera.distance * float(np.sqrt(np.sum(world**2, axis=1)).max())
+        X = cam + np.array([0.0, 0.0, depth])[None, :, None]
+        W_clean = camera.project(X).reshape(2 * F, P)
+        extra = dict(intrinsics=camera.intrinsics, depth=depth, camera=camera)
     W = W_clean.copy()
     if noise:
         W = W + noise * np.mean(np.std(W_clean, axis=1)) * rng.standard_normal(W.shape)
-        W -= W.mean(axis=1, keepdims=True)
+        if camera is None:
+            W -= W.mean(axis=1, keepdims=True)
     return Sequence(
         name=name or f"synthetic-{motion}",
         W=W,
@@ -109,7 +189,13 @@ def make_synthetic(
         K=K,
         world_shapes=world,
         extra=dict(
-            basis=basis, coefficients=coeff, W_clean=W_clean, motion=motion, noise=noise, seed=seed
+            basis=basis,
+            coefficients=coeff,
+            W_clean=W_clean,
+            motion=motion,
+            noise=noise,
+            seed=seed,
+            **extra,
         ),
     )
 

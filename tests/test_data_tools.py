@@ -123,6 +123,45 @@ def test_synthetic_is_seeded_and_noise_is_applied():
         dt.make_synthetic(F=3, P=12, K=3)
 
 
+def test_perspective_camera_projects_the_same_shapes_through_its_intrinsics():
+    cam = dt.PerspectiveCamera(distance=3.0, focal=600.0, principal=(300.0, 200.0))
+    persp = dt.make_synthetic(F=20, P=15, K=2, seed=4, camera=cam)
+    ortho = dt.make_synthetic(F=20, P=15, K=2, seed=4)
+    np.testing.assert_array_equal(persp.shapes, ortho.shapes)  # the same draws
+    np.testing.assert_array_equal(persp.rotations, ortho.rotations)
+    depth = persp.extra["depth"]
+    X = persp.shapes + np.array([0.0, 0.0, depth])[None, :, None]
+    homogeneous = np.einsum("ij,fjp->fip", persp.extra["intrinsics"], X)
+    pixels = homogeneous[:, :2] / homogeneous[:, 2:]
+    np.testing.assert_allclose(persp.W.reshape(20, 2, 15), pixels, rtol=1e-12)
+    # the distance is in object radii: the nearest point is in front, at least depth / 3 away
+    radius = np.linalg.norm(persp.world_shapes, axis=1).max()
+    assert depth == pytest.approx(3.0 * radius) and X[:, 2].min() >= depth - radius
+
+
+def test_a_far_perspective_camera_is_nearly_orthographic():
+    cam = dt.PerspectiveCamera(distance=500.0, focal=1.0, principal=(0.0, 0.0))
+    persp = dt.make_synthetic(F=10, P=12, K=1, seed=1, camera=cam)
+    ortho = dt.make_synthetic(F=10, P=12, K=1, seed=1)
+    W = persp.W * persp.extra["depth"]  # weak perspective: pixels x depth / focal
+    W = W - W.mean(axis=1, keepdims=True)
+    assert np.abs(W - ortho.W).max() < 0.01 * np.abs(ortho.W).max()
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(distance=1.0), "distance must be above 1"),
+        (dict(distance=float("nan")), "distance"),
+        (dict(focal=0.0), "focal must be positive"),
+        (dict(principal=(1.0,)), "principal must be two numbers"),
+    ],
+)
+def test_perspective_camera_names_a_bad_value(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        dt.PerspectiveCamera(**kwargs)
+
+
 def test_noise_and_missing_data_generators():
     W = dt.make_synthetic(F=30, P=15, K=2, seed=0).W
     Wn = dt.add_noise(W, 0.05, seed=1)

@@ -4,11 +4,12 @@ import doctest
 
 import pytest
 
+import data_tools.synthetic
 import nrsfm.pipeline
 import nrsfm.settings
 
 
-@pytest.mark.parametrize("module", [nrsfm.pipeline, nrsfm.settings])
+@pytest.mark.parametrize("module", [nrsfm.pipeline, nrsfm.settings, data_tools.synthetic])
 def test_docstring_examples(module):
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert result.failed == 0 and result.attempted > 0, result
