@@ -15,7 +15,14 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the notebooks rewritten as lessons so far (the others keep their older form)
-LESSONS = ["01_measurement_svd", "04_rotation_averaging", "05_shape_admm", "06_mocap_benchmark", "07_experiments"]
+LESSONS = [
+    "01_measurement_svd",
+    "04_rotation_averaging",
+    "05_shape_admm",
+    "06_mocap_benchmark",
+    "07_experiments",
+    "09_lost_markers",
+]
 MAX_CELL_LINES = 25
 #: prose that cites rather than states a number (equations, sections, figures, notebooks)
 _REF = r"\(?\d+(?:\.\d+)*[a-z]?\)?"
