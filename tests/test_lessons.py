@@ -16,6 +16,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: the notebooks rewritten as lessons so far (the others keep their older form)
 LESSONS = [
+    "00_quickstart",
     "01_measurement_svd",
     "04_rotation_averaging",
     "05_shape_admm",
