@@ -22,6 +22,7 @@ LESSONS = [
     "05_shape_admm",
     "06_mocap_benchmark",
     "07_experiments",
+    "08_video_to_3d",
     "09_lost_markers",
 ]
 MAX_CELL_LINES = 25
