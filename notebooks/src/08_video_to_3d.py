@@ -271,7 +271,7 @@ print(f"e3d = {e_kept:.4f}")
 # into frame 1, is seen in a single frame and left out. The summary shows the completion
 # (the share of the used tracks' observations filled) and how many tracks were seen in
 # too few frames for their 3D to be pinned down (undetermined: their 3D is an
-# extrapolation). Its note (not a warning: nothing to fix) says that W is not exactly of
+# extrapolation). Its note, `N-model-misfit` (not a warning: nothing to fix), means that W is not exactly of
 # rank 3K: the face's deformation mixes three basis shapes, and K = 1 cannot fit it
 # exactly. The e3d is about a tenth of the face's size.
 #
