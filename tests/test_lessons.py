@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LESSONS = [
     "00_quickstart",
     "01_measurement_svd",
+    "02_corrective_triplets",
     "04_rotation_averaging",
     "05_shape_admm",
     "06_mocap_benchmark",
