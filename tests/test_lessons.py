@@ -19,6 +19,7 @@ LESSONS = [
     "00_quickstart",
     "01_measurement_svd",
     "02_corrective_triplets",
+    "03_rotations_registration",
     "04_rotation_averaging",
     "05_shape_admm",
     "06_mocap_benchmark",
