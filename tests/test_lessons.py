@@ -14,19 +14,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the notebooks rewritten as lessons so far (the others keep their older form)
-LESSONS = [
-    "00_quickstart",
-    "01_measurement_svd",
-    "02_corrective_triplets",
-    "03_rotations_registration",
-    "04_rotation_averaging",
-    "05_shape_admm",
-    "06_mocap_benchmark",
-    "07_experiments",
-    "08_video_to_3d",
-    "09_lost_markers",
-]
+#: every notebook is a lesson
+LESSONS = sorted(p.stem for p in (ROOT / "notebooks" / "src").glob("[0-9][0-9]_*.py"))
 MAX_CELL_LINES = 25
 #: prose that cites rather than states a number (equations, sections, figures, notebooks)
 _REF = r"\(?\d+(?:\.\d+)*[a-z]?\)?"
