@@ -284,11 +284,10 @@ def test_real_stages_recording(tmp_path, seq):
             data[f"/rotation_samples/kept/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
         )[0]
         assert np.array_equal(np.ravel(kept), np.asarray(stage.kept)[k - 1].astype(float))
-        dist = column(
-            data[f"/rotation_samples/distance/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
-        )[0]
-        expect = np.linalg.norm(stage.registered[k - 1] - stage.averaged, axis=(1, 2))
-        np.testing.assert_allclose(np.ravel(dist), expect, atol=1e-9)
+        angle = column(
+            data[f"/rotation_samples/angle/triplet_{k}"]["temporal"], "Scalars:scalars", "frame"
+        )[0]  # the geodesic angle the filter compares with delta
+        np.testing.assert_allclose(np.ravel(angle), stage.filter_distance[k - 1], atol=1e-9)
     flips = column(
         data["/rotation_samples/sign_from_smoothness"]["temporal"], "Scalars:scalars", "frame"
     )[0]

@@ -60,7 +60,7 @@ def _series_views(rrb, content, no_legend):
         for n in errors
     ]
     if _has(content, "triplet_rotations"):
-        path, name = "/rotation_samples/distance", "sample distance to average"
+        path, name = "/rotation_samples/angle", "sample angle to the average (rad)"
         series.append(rrb.TimeSeriesView(origin=path, name=name))
         if content is None or content.triplet_coefficients is not None:
             path, name = "/rotation_samples/coefficient", "|c_fk| per triplet"

@@ -41,7 +41,7 @@ class RecordingContent:
     reprojected: np.ndarray | None = None  # (F, P, 2) R_f X_f
     triplet_rotations: np.ndarray | None = None  # (K, F, 3, 3) registered samples
     triplet_kept: np.ndarray | None = None  # (K, F) bool
-    triplet_distance: np.ndarray | None = None  # (K, F) chordal distance to the average
+    triplet_angle: np.ndarray | None = None  # (K, F) geodesic angle to the average (rad)
     triplet_coefficients: np.ndarray | None = None  # (K, F)
     averaged: np.ndarray | None = None  # (F, 3, 3)
     sign_from_smoothness: np.ndarray | None = None  # (F,) bool
@@ -136,9 +136,11 @@ def _add_rotation_stage(c, result, Q, R_gt):
         c.triplet_kept = np.ones((K, F), bool) if kept is None else np.asarray(kept, bool)
         c.triplet_kept = c.triplet_kept.reshape(K, F)
         final = complete_rotations(averaged if averaged is not None else result.rotations)
-        c.triplet_distance = np.linalg.norm(
-            complete_rotations(registered) - final[None], axis=(2, 3)
-        )
+        angle = _get(rs, "filter_distance")  # what the filter compares with delta
+        if angle is None:
+            trace = np.einsum("kfij,fij->kf", complete_rotations(registered), final)
+            angle = np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
+        c.triplet_angle = np.asarray(angle, float).reshape(K, F)
         if _get(rs, "coefficients") is not None:
             c.triplet_coefficients = np.asarray(rs.coefficients, float).reshape(K, F)
     if _get(rs, "sign_from_smoothness") is not None:

@@ -17,7 +17,8 @@ given are left out):
   the camera centres [static]
 * ``/rotations/triplet_k`` (k = 1..K): Arrows3D, the registered ``R^k_f``, grey where the
   filter dropped it; ``/rotations/averaged``, ``/rotations/ground_truth`` [frame]
-* ``/rotation_samples/{kept,distance,coefficient}/triplet_k``, ``/rotation_samples/n_kept``,
+* ``/rotation_samples/{kept,angle,coefficient}/triplet_k`` (angle: the geodesic angle to
+  the average, radians, which the filter compares with delta), ``/rotation_samples/n_kept``,
   ``/rotation_samples/sign_from_smoothness``: Scalars [frame]
 * ``/errors/e3d``, ``/errors/e_R``: Scalars [frame]
 * ``/image/measured``, ``/image/reprojected``: Points2D, ``W_f`` and ``R_f X_f`` [frame]
@@ -134,8 +135,8 @@ def _log_rotations(rec, rr, c):
         rl.send_axes(rec, rr, f"/rotations/{name}", R, fr, colors, 1.0, 0.004)
         kept = c.triplet_kept[k].astype(float)
         rl.send_scalars(rec, rr, f"/rotation_samples/kept/{name}", kept, fr)
-        distance = c.triplet_distance[k]
-        rl.send_scalars(rec, rr, f"/rotation_samples/distance/{name}", distance, fr, name=label)
+        angle = c.triplet_angle[k]
+        rl.send_scalars(rec, rr, f"/rotation_samples/angle/{name}", angle, fr, name=label)
         if c.triplet_coefficients is not None:
             path = f"/rotation_samples/coefficient/{name}"
             rl.send_scalars(rec, rr, path, c.triplet_coefficients[k], fr, name=label)
