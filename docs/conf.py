@@ -15,7 +15,7 @@ extensions = [
 ]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-exclude_patterns = ["_build", "figures", "**/*_files"]
+exclude_patterns = ["_build", "**/*_files"]
 templates_path = ["_templates"]
 
 myst_enable_extensions = ["dollarmath", "amsmath"]

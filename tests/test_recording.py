@@ -341,31 +341,6 @@ def test_committed_notebooks_have_no_outputs():
     )
 
 
-def test_render_figures_script(tmp_path):
-    """tools/render_figures.py writes the synthetic PNGs (MoCap ones only with NRSFM_DATA)."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    pytest.importorskip("matplotlib")
-    script = Path(__file__).resolve().parents[1] / "tools" / "render_figures.py"
-    out = subprocess.run(
-        [sys.executable, str(script), "--out", str(tmp_path), "--no-mocap"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert out.returncode == 0, out.stderr
-    names = sorted(p.name for p in tmp_path.glob("*.png"))
-    assert names == [
-        "synthetic_admm.png",
-        "synthetic_cameras.png",
-        "synthetic_shapes.png",
-        "synthetic_singular_values.png",
-    ]
-    assert all((tmp_path / n).stat().st_size > 10_000 for n in names)
-
-
 def _views(node):
     import rerun.blueprint as rrb
 

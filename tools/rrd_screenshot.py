@@ -1,7 +1,7 @@
 """Screenshot Rerun recordings as a person sees them: the Rerun web viewer in headless Chromium.
 
     python tools/rrd_screenshot.py RECORDING.rrd OUT.png [--chromium PATH] [--wait 40]
-    python tools/rrd_screenshot.py --readme [--chromium PATH]   # the README's screenshots
+    python tools/rrd_screenshot.py --lessons [--chromium PATH]  # the course's screenshots
 
 ``rerun --web-viewer`` (installed with rerun-sdk) serves the recording and the viewer on
 127.0.0.1; Chromium (``--chromium``, else ``chromium`` / ``chromium-browser`` /
@@ -10,8 +10,9 @@
 taken through the Chrome DevTools protocol after ``--wait`` seconds. Every process started
 is stopped by its own id at the end.
 
-``--readme`` runs ``nrsfm demo`` and ``nrsfm mocap pickup`` (needs ``NRSFM_DATA``) and
-writes ``docs/figures/viewer_demo.png`` and ``docs/figures/viewer_pickup.png``.
+``--lessons`` screenshots the recording each lesson wrote (``out/notebooks/NN_*.rrd``, made
+by ``python notebooks/build_notebooks.py --render``) into
+``docs/notebooks/recordings/<notebook>.png``, the picture its rendered page shows.
 """
 
 from __future__ import annotations
@@ -193,26 +194,14 @@ def screenshot(rrd, out, chromium=None, wait=40.0, size=(1600, 1000)):
     return out
 
 
-def readme(chromium=None, wait=40.0, out_dir=ROOT / "docs" / "figures"):
-    """Make the demo and pickup recordings with the CLI and screenshot them."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        env.setdefault(v, "1")
-    with tempfile.TemporaryDirectory() as tmp:
-        jobs = [("demo", ["demo"])]
-        if os.environ.get("NRSFM_DATA"):
-            jobs.append(("pickup", ["mocap", "pickup"]))
-        else:
-            print("NRSFM_DATA not set: pickup screenshot skipped")
-        for name, args in jobs:
-            rrd = Path(tmp) / f"{name}.rrd"
-            subprocess.run(
-                [sys.executable, "-m", "nrsfm", *args, "--rrd", str(rrd)],
-                env=env,
-                check=True,
-                stdout=subprocess.DEVNULL,
-            )
-            print("wrote", screenshot(rrd, Path(out_dir) / f"viewer_{name}.png", chromium, wait))
+def lessons(chromium=None, wait=40.0, size=(1400, 800)):
+    """Screenshot each lesson's recording (``out/notebooks/NN_*.rrd``) for its page."""
+    notebooks = {p.stem[:2]: p.stem for p in (ROOT / "notebooks" / "src").glob("[0-9][0-9]_*.py")}
+    out_dir = ROOT / "docs" / "notebooks" / "recordings"
+    for rrd in sorted((ROOT / "out" / "notebooks").glob("[0-9][0-9]_*.rrd")):
+        name = notebooks.get(rrd.stem[:2])
+        if name is not None:
+            print("wrote", screenshot(rrd, out_dir / f"{name}.png", chromium, wait, size))
 
 
 def main(argv=None):
@@ -220,9 +209,9 @@ def main(argv=None):
     p.add_argument("rrd", nargs="?", help="recording (.rrd)")
     p.add_argument("out", nargs="?", help="PNG to write")
     p.add_argument(
-        "--readme",
+        "--lessons",
         action="store_true",
-        help="make the README's viewer screenshots (docs/figures/viewer_*.png)",
+        help="screenshot the lessons' recordings (docs/notebooks/recordings/*.png)",
     )
     p.add_argument("--chromium", help="Chromium executable (default: found on PATH)")
     p.add_argument(
@@ -233,11 +222,11 @@ def main(argv=None):
     )
     p.add_argument("--size", default="1600x1000", help="WIDTHxHEIGHT (default 1600x1000)")
     a = p.parse_args(argv)
-    if a.readme:
-        readme(a.chromium, a.wait)
+    if a.lessons:
+        lessons(a.chromium, a.wait)
         return 0
     if not (a.rrd and a.out):
-        p.error("give RECORDING.rrd OUT.png, or --readme")
+        p.error("give RECORDING.rrd OUT.png, or --lessons")
     w, h = (int(x) for x in a.size.lower().split("x"))
     print("wrote", screenshot(a.rrd, a.out, a.chromium, a.wait, (w, h)))
     return 0
