@@ -9,6 +9,7 @@ never a Python warning). ``{NAME}`` fields of the triggers are the owning module
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 #: the first words of the one :class:`nrsfm.NRSfMWarning` a flagged run issues; the
@@ -226,6 +227,12 @@ CATALOG = {
 def text(wid, **values):
     """The message of warning or note ``wid``: ``"<id>: "`` and its filled template."""
     return f"{wid}: " + CATALOG[wid].message.format(**values)
+
+
+def ids_in(message):
+    """The catalog ids a warning's message names, in order: one for most warnings, every
+    flag of the run for an ``NRSfMWarning`` (its flags joined by ``"; "``)."""
+    return [w for w in re.findall(r"\b([WN]-[a-z]+(?:-[a-z]+)*): ", str(message)) if w in CATALOG]
 
 
 def lead(wid):

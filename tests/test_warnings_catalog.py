@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from nrsfm.warnings_catalog import CATALOG, UNRELIABLE, lead, text
+from nrsfm.warnings_catalog import CATALOG, UNRELIABLE, ids_in, lead, text
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "warnings.md"
@@ -134,3 +134,13 @@ def test_message_starts_with_the_words_the_doc_gives(wid):
     assert head.startswith(f"{wid}: ") and len(head.split()) >= 2, head
     message = text(wid, **CATALOG[wid].example)
     assert message.startswith(head) and "{" not in head
+
+
+def test_ids_in_names_every_flag_of_a_message():
+    for wid, entry in CATALOG.items():
+        assert ids_in(text(wid, **entry.example)) == [wid]
+    joined = "unreliable reconstruction: " + "; ".join(
+        text(w, **CATALOG[w].example) for w in ("W-few-frames", "W-camera-jumps")
+    )
+    assert ids_in(joined) == ["W-few-frames", "W-camera-jumps"]
+    assert ids_in("a message without an id") == []

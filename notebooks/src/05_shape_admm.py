@@ -55,6 +55,7 @@ from nrsfm.stages.measurement import WORKING_FROBENIUS
 from nrsfm.stages.shape import phi, pseudo_inverse_shapes
 from nrsfm.stages.shape.admm import AdmmSettings, admm_iterations, psvt, shape_weights
 from nrsfm.views import output_path, save_recording, show_recording, shown_path
+from nrsfm.warnings_catalog import ids_in
 
 # %%
 seq = data_tools.make_synthetic(F=150, P=45, K=3, motion="smooth", noise=0.02, seed=7)
@@ -445,7 +446,7 @@ if MOCAP is not None and (MOCAP / "pickup.mat").is_file():
             r_ = nrsfm.reconstruct(pk.W, pk.K, rotations=pk.rotations, settings=admm_N(N))
         abl_m.append(r_.errors(pk.shapes)["e3d"])
         amp_m[N] = r_.diagnostics.signals["depth_amplification"]
-        warned[N] = sorted({str(w_.message).split(": ")[1] for w_ in log})
+        warned[N] = sorted({i for w_ in log for i in ids_in(w_.message)})
     print(f"pickup: F = {pk.n_frames}, P = {pk.n_points}, K = {pk.K}")
     for N, e in zip(Ns_m, abl_m):
         print(f"  N = {N}: e3d {e:.4f}, depth amplification {amp_m[N]:.3g}, warned {warned[N]}")

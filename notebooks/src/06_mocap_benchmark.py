@@ -42,6 +42,7 @@ import nrsfm
 from nrsfm import paths
 from nrsfm.published import published_value
 from nrsfm.views import figures, output_path, save_recording, show_recording, shown_path
+from nrsfm.warnings_catalog import ids_in
 
 MOCAP = paths.data_dir() / "mocap" if os.environ.get("NRSFM_DATA") else None
 HAVE_DATA = MOCAP is not None and (MOCAP / "pickup.mat").is_file()
@@ -118,7 +119,7 @@ for name in data_tools.MOCAP_NAMES if HAVE_DATA else ():
     with warnings.catch_warnings(record=True) as log:  # expected: listed and explained below
         warnings.simplefilter("always")
         rows[name], results[name] = run_sequence(seq)
-    rows[name]["warned"] = sorted({str(w.message).split(": ")[1] for w in log})
+    rows[name]["warned"] = sorted({i for w in log for i in ids_in(w.message)})
 print(f"{len(rows)} sequences in {time.perf_counter() - t0:.0f} s")
 
 # %% [markdown]

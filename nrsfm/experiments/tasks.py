@@ -216,16 +216,15 @@ def run_task(task):
     ids of the warnings the task raised (``warned``, ``; ``-separated): a task's outcome
     never depends on the caller's warning filter (a worker forked from a process where
     warnings are errors still finishes)."""
-    import re
     import warnings
 
     from threadpoolctl import threadpool_limits
 
+    from ..warnings_catalog import ids_in
+
     with threadpool_limits(limits=1), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         rows = RUNNERS[task.experiment](**task.params)
-    ids = [
-        re.findall(r"\b([WN]-[a-z-]+): ", str(w.message)) or [w.category.__name__] for w in caught
-    ]
+    ids = [ids_in(w.message) or [w.category.__name__] for w in caught]
     warned = "; ".join(sorted({i for group in ids for i in group}))
     return [dict(r, experiment=task.experiment, warned=warned) for r in rows]
