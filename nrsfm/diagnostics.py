@@ -11,7 +11,8 @@ Signals: ``numerical_rank`` (singular values of the centred W above ``RANK_RTOL 
 (:mod:`nrsfm.noise`, relative to W's RMS entry), ``depth_amplification``
 (:func:`nrsfm.metrics.depth_amplification`); from the rotation stage: ``triplet_cost_ratio``
 (Dai's cost over its noise prediction, :func:`predicted_triplet_cost`), ``triplet_hits``,
-``kept_fraction``, ``smoothness_sign_fraction``, ``camera_spread_deg``, ``looks_transposed``.
+``kept_fraction``, ``smoothness_sign_fraction``, ``camera_spread_deg``, ``looks_transposed``;
+from the fill of missing data (:func:`diagnose_fill`): ``unreliable_tracks``.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .stages.completion import MAX_GAIN
+from .stages.fill import SPREAD_MAX
 from .stages.rotations.subspace import DETERMINED_RTOL, lower_minimum, transposed_cost
 from .warnings_catalog import UNRELIABLE, text
 
@@ -47,6 +50,9 @@ COST_FLOOR_PER_FRAME = 1e-6
 #: W "looks transposed" when read as (P, 2F) its best Dai cost per frame is below this
 #: fraction of its cost per frame as given
 TRANSPOSE_RATIO = 0.25
+#: largest acceptable number of unreliable tracks (``Reconstruction.unreliable``: fill gain
+#: above ``MAX_GAIN``, fills' spread above ``SPREAD_MAX``) of a run with missing data
+UNRELIABLE_TRACKS_MAX = 0
 
 THRESHOLDS = dict(
     camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",
@@ -60,6 +66,8 @@ THRESHOLDS = dict(
     looks_transposed="True",
     triplet_unknowns="> 2F (8K - 3 at full rank)",
     depth_amplification=f"> {DEPTH_AMPLIFICATION_MAX} with noise_level > {DEPTH_NOISE_MIN:g}",
+    unreliable_tracks=f"> {UNRELIABLE_TRACKS_MAX} (tracks of fill gain > {MAX_GAIN:g} and "
+    f"fill spread > {SPREAD_MAX})",
 )
 
 
@@ -254,3 +262,29 @@ def _rotation_signals(W, K, fact, rotation_stage, seed, sig, flags, notes):
         if there < TRANSPOSE_RATIO * here:
             sig["looks_transposed"] = True
             flags.append(text("W-transposed", P=P, twoF=twoF, F_t=P // 2, there=there, here=here))
+
+
+def diagnose_fill(diagnostics, unreliable, by_neighbours=True):
+    """Add the fill's signal ``unreliable_tracks`` to a run's ``diagnostics`` (in place), and
+    its flag when tracks are unreliable: after the fill, for input with missing data.
+
+    Parameters
+    ----------
+    diagnostics : Diagnostics
+        The run's diagnostics (:func:`diagnose`).
+    unreliable : (P,) bool array_like
+        ``Reconstruction.unreliable``: tracks seen in too few frames for the data to
+        determine their 3D whose fills disagree (or, without the neighbour fill, all of them).
+    by_neighbours : bool
+        Whether the tracks were filled from their neighbours (``fill="neighbours"``).
+    """
+    unreliable = np.asarray(unreliable, bool)
+    sig, flags = diagnostics.signals, diagnostics.flags
+    n = sig["unreliable_tracks"] = int(unreliable.sum())
+    if n > UNRELIABLE_TRACKS_MAX:
+        why = (
+            "their fills from the neighbours disagree"
+            if by_neighbours
+            else "only the model filled them (fill='model')"
+        )
+        flags.append(text("W-fills-unreliable", n=n, P=unreliable.size, why=why))

@@ -5,7 +5,7 @@ its typed settings (:mod:`nrsfm.settings`):
 
     W --check--> [completion] --> measure (centre, scale, rank-3K SVD)
       --> rotations (RotationSettings) --> shape (BilinearSettings / AdmmSettings)
-      --> diagnostics --> [fill of the points not seen]
+      --> diagnostics --> [fill of the points not seen, its flag] --> one warning
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .diagnostics import NRSfMWarning, diagnose
+from .diagnostics import NRSfMWarning, diagnose, diagnose_fill
 from .metrics import depth_amplification
 from .settings import KEYWORDS, METHODS, Settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
@@ -286,7 +286,9 @@ def reconstruct(
     Warns
     -----
     nrsfm.NRSfMWarning
-        When a quality signal of the run crosses its threshold (``result.diagnostics``).
+        When a quality signal of the run crosses its threshold (``result.diagnostics``),
+        tracks the fill leaves unreliable (``result.unreliable``) included: one warning
+        with every flag of the run.
 
     Examples
     --------
@@ -330,17 +332,16 @@ def reconstruct(
     shapes = shape_stage.shapes
     amp = None if settings.shape is None else depth_amplification(rotations, shapes, K)
     diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
-    if diagnostics.flags:
-        warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
     shapes = meas.restore(shape_stage.shapes)
     if not (np.all(np.isfinite(shapes)) and np.isfinite(meas.scale)):
         raise ValueError(f"the shapes overflow in W's units (max|W| {np.abs(W).max():.3g})")
-    spread = None
-    if completion is not None and settings.measurement.fill == "neighbours":
-        with _timed(timings, "fill"):
-            undetermined = fill_gain(fact.M_hat, completion.observed) > MAX_GAIN
-            shapes, spread = fill_unseen(shapes, completion.observed, undetermined)
-    return Reconstruction(
+    spread, gain, by_neighbours = None, None, settings.measurement.fill == "neighbours"
+    if completion is not None:
+        with _timed(timings, "fill") if by_neighbours else nullcontext():
+            gain = fill_gain(fact.M_hat, completion.observed)
+            if by_neighbours:
+                shapes, spread = fill_unseen(shapes, completion.observed, gain > MAX_GAIN)
+    result = Reconstruction(
         rotations=rotations,
         shapes=shapes,
         K=K,
@@ -358,6 +359,12 @@ def reconstruct(
         completion=completion,
         fill_spread=spread,
     )
+    if completion is not None:  # the tracks the fill leaves unreliable: a flag of the run
+        vars(result)["fill_gain"] = gain  # its cached property, computed once
+        diagnose_fill(diagnostics, result.unreliable, by_neighbours)
+    if diagnostics.flags:  # one warning per run, every flag in it
+        warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
+    return result
 
 
 def _settings(settings, **keywords):

@@ -211,6 +211,23 @@ CATALOG = {
         raised=_RUNTIME,
         where="`nrsfm/stages/completion/__init__.py`",
     ),
+    "W-fills-unreliable": Entry(
+        "tracks seen too rarely: {n} of {P} tracks were seen in too few frames for the data to "
+        "determine their 3D and {why}, so their 3D in the frames they were not seen is an "
+        "extrapolation that may be far off; add frames in which they are seen, drop them, or "
+        "mask them with result.unreliable",
+        "`unreliable_tracks`, the number of tracks in `Reconstruction.unreliable`, above "
+        "`UNRELIABLE_TRACKS_MAX` = {UNRELIABLE_TRACKS_MAX}: input with missing entries, tracks "
+        "whose fill gain is above `MAX_GAIN` = {MAX_GAIN:g} and, with the neighbour fill, whose "
+        "four fills stray from their median by more than `SPREAD_MAX` = {SPREAD_MAX} of the "
+        "shapes' RMS radius (`fill_spread`)",
+        "the 3D of those tracks in the frames they were not seen is a guess from their "
+        "neighbours and the model, not a measurement, and may be far off; the flag is about "
+        "those tracks only.",
+        "record more frames in which those tracks are seen, drop them from W, or leave them out "
+        "where the shapes are used (`result.shapes[:, :, ~result.unreliable]`).",
+        dict(n=15, P=992, why="their fills from the neighbours disagree"),
+    ),
     "W-ignored-arrays": Entry(
         "nrsfm run ignores arrays of {inp} that it does not read: {ignored} (it reads {keys}); "
         "rename one if it was meant as input",

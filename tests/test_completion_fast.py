@@ -172,9 +172,11 @@ def test_reconstruction_reports_the_undetermined_tracks():
     seq = dt.make_synthetic(F=40, P=40, K=1, seed=5)
     W = seq.W.copy()
     W[4:, 0] = np.nan  # seen in 2 frames
-    r = nrsfm.reconstruct(W, 1)
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: .* 1 of 40 tracks"):
+        r = nrsfm.reconstruct(W, 1)  # its fills from the neighbours disagree
     assert r.fill_gain.shape == (40,) and r.undetermined[0] and r.undetermined.sum() == 1
-    assert "1 of 40 tracks undetermined" in r.summary()
+    assert "1 of 40 tracks undetermined" in r.summary() and r.unreliable[0]
+    assert "WARNING: W-fills-unreliable: " in r.summary()
     full = nrsfm.reconstruct(seq.W, 1)
     assert full.fill_gain is None and not full.undetermined.any()
 

@@ -10,6 +10,7 @@ from nrsfm.stages.completion import MeasurementSettings
 from nrsfm.stages import fill
 from nrsfm.stages.fill import fill_unseen
 from nrsfm.geometry import project_to_so3
+from nrsfm.warnings_catalog import UNRELIABLE, ids_in
 
 
 def _rigid_parts(F=30, parts=3, size=8, seed=0):
@@ -59,10 +60,12 @@ def test_fill_checks_the_mask():
 def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
     W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
-    res = nrsfm.reconstruct(W, 2)  # the default: fill="neighbours"
-    model = nrsfm.reconstruct(
-        W, 2, settings=Settings(measurement=MeasurementSettings(fill="model"))
-    )  # the shape stage's fill
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: "):
+        res = nrsfm.reconstruct(W, 2)  # the default: fill="neighbours"
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: .*fill='model'"):
+        model = nrsfm.reconstruct(
+            W, 2, settings=Settings(measurement=MeasurementSettings(fill="model"))
+        )  # the shape stage's fill
     assert res.settings.measurement.fill == "neighbours"
     assert model.fill_spread is None and "fill" in res.timings
     seen = np.broadcast_to(obs[:, None, :], res.shapes.shape)
@@ -80,6 +83,46 @@ def test_reconstruct_fills_the_lost_points_and_keeps_the_seen():
     np.testing.assert_array_equal(model.unreliable, model.undetermined)  # no spread: all
     complete = nrsfm.reconstruct(seq.W, 2)
     assert complete.fill_spread is None and not complete.unreliable.any()
+
+
+def test_unreliable_tracks_warn_once_with_the_runs_other_flags():
+    """Tracks lost early whose neighbour fills disagree: one NRSfMWarning that counts them,
+    the summary's WARNING line; a run flagged for other reasons too still warns once."""
+    seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
+    W, _ = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: ") as caught:
+        res = nrsfm.reconstruct(W, 2)
+    (w,) = caught
+    assert ids_in(w.message) == ["W-fills-unreliable"]
+    assert res.unreliable.sum() == 4 == res.diagnostics.signals["unreliable_tracks"]
+    assert str(w.message) == UNRELIABLE + res.diagnostics.flags[0]
+    assert "4 of 20 tracks were seen in too few frames" in str(w.message)
+    assert "  WARNING: W-fills-unreliable: tracks seen too rarely: 4 of 20" in res.summary()
+    static = data_tools.make_synthetic(F=40, P=20, K=2, seed=3, motion="static")
+    W, _ = data_tools.drop_tracks(static.W, 0.3, seed=31, pattern="lost")
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: ") as caught:
+        res = nrsfm.reconstruct(W, 2)
+    (w,) = caught
+    assert ids_in(w.message)[-2:] == ["W-static-camera", "W-fills-unreliable"]
+    assert ids_in(w.message) == [f.split(":")[0] for f in res.diagnostics.flags]
+
+
+def test_no_warning_where_every_track_is_determined_or_filled_alike():
+    """Uniform scattered missing entries (50 %): every track determined, every entry filled,
+    no warning. Tracks of a rigid body lost early: undetermined, but their four fills agree,
+    so none is unreliable and the run does not warn either."""
+    seq = data_tools.make_synthetic(F=60, P=30, K=2, seed=0)
+    W, obs = data_tools.drop_tracks(seq.W, 0.5, seed=0)
+    assert 0.4 < 1 - obs.mean() < 0.6
+    res = nrsfm.reconstruct(W, 2)  # warnings are errors in the tests
+    assert not res.undetermined.any() and np.isfinite(res.shapes).all()
+    assert res.diagnostics.signals["unreliable_tracks"] == 0 and not res.diagnostics.flags
+    assert "WARNING" not in res.summary()
+    rigid = data_tools.make_synthetic(F=40, P=20, K=1, seed=0)
+    W, _ = data_tools.drop_tracks(rigid.W, 0.3, seed=31, pattern="lost")
+    res = nrsfm.reconstruct(W, 1)
+    assert res.undetermined.sum() == 2 and not res.unreliable.any()
+    assert res.diagnostics.signals["unreliable_tracks"] == 0
 
 
 # the definition: the per-point loop the batched fill replaced (kept here to test it)

@@ -455,8 +455,10 @@ def test_missing_data_draws_the_filled_points_by_their_reliability(tmp_path):
 
     seq = data_tools.make_synthetic(F=40, P=20, K=2, seed=3)
     W, obs = data_tools.drop_tracks(seq.W, 0.3, seed=31, pattern="lost")
-    res = nrsfm.reconstruct(W, 2)
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-fills-unreliable: "):  # 4 lost tracks
+        res = nrsfm.reconstruct(W, 2)
     c = recording_content(res, seq)
+    assert "WARNING: W-fills-unreliable: " in c.report
     np.testing.assert_array_equal(c.filled, ~obs)
     np.testing.assert_allclose(c.fill_gain, res.fill_gain)
     path = save_recording(res, tmp_path / "missing.rrd", sequence=seq)
