@@ -271,7 +271,10 @@ print(f"e3d = {e_kept:.4f}")
 # into frame 1, is seen in a single frame and left out. The summary shows the completion
 # (the share of the used tracks' observations filled) and how many tracks were seen in
 # too few frames for their 3D to be pinned down (undetermined: their 3D is an
-# extrapolation). Its note, `N-model-misfit` (not a warning: nothing to fix), means that W is not exactly of
+# extrapolation). None of them is unreliable: the fills the library makes for them from
+# their neighbours agree (lesson 09), so the run does not warn; one unreliable track would
+# bring the warning `W-fills-unreliable` (its 3D where it was not seen may be far off).
+# Its note, `N-model-misfit` (not a warning: nothing to fix), means that W is not exactly of
 # rank 3K: the face's deformation mixes three basis shapes, and K = 1 cannot fit it
 # exactly. The e3d is about a tenth of the face's size.
 #
@@ -420,6 +423,7 @@ assert 0.55 < 1 - off.sum() / off_raw.sum() < 0.75  # "about two thirds" prevent
 assert 0.25 < report["error_median"] < 0.4  # "a third of a pixel"
 assert abs(np.isnan(seq.W).mean() - (F - lost).sum() / (F * lost.size)) < 1e-12
 assert vr.missing_data and vr.used.sum() == on.sum() - 1 and (lost == 1).sum() == 1
+assert vr.result.undetermined.any() and not vr.result.unreliable.any()  # "none ... unreliable"
 assert 0.08 < e_kept < 0.15  # "about a tenth"
 assert abs(e_raw - e_kept) < 0.005 and e_clean < e_kept - 0.01  # "barely", "more clearly"
 assert (dense.lost_at < F).sum() < n_lost / 2 and 0.2 < rep_d["error_median"] < 0.35

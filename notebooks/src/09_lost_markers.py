@@ -37,6 +37,7 @@
 
 # %%
 import os
+import warnings
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
@@ -55,6 +56,7 @@ from nrsfm.stages.completion import MAX_GAIN, choose_lags, fill_gain
 from nrsfm.stages.fill import AFFINE_NEIGHBOURS, RIDGE, RIGID_NEIGHBOURS, SPREAD_MAX, fill_unseen
 from nrsfm.stages.measurement import factorize
 from nrsfm.views import output_path, recording_content, save_recording, show_recording, shown_path
+from nrsfm.warnings_catalog import ids_in
 
 # %%
 toy = data_tools.make_synthetic(F=80, P=20, K=2, motion="smooth", seed=3)
@@ -183,14 +185,23 @@ plt.show()
 # %%
 print(f"fewest markers seen in a frame: {observed.sum(axis=1).min()}; 3K + 1 = {3 * K + 1}")
 print(f"choose_lags: {choose_lags(observed, 3 * K)}")
-result = nrsfm.reconstruct(W, K)
+with warnings.catch_warnings(record=True) as caught:  # its warning: printed, explained below
+    warnings.simplefilter("always")
+    result = nrsfm.reconstruct(W, K)
 c = result.completion
 print(f"completion: {c.method}, lags {c.lags}, {c.n_iter} iterations, converged {c.converged}")
+warned = [i for w in caught for i in ids_in(w.message)]
+print(f"warnings: {len(caught)}, ids {warned}; unreliable markers: {result.unreliable.sum()}")
 
 # %% [markdown]
 # The frame with fewest markers sees fewer than the unknowns of its rows, so the rule
 # asks for the lags -1, 0, 1, and the completion (soft-impute, a nuclear-norm completion;
-# `docs/studies/missing_data.md` says why) converges. How good are the completed entries?
+# `docs/studies/missing_data.md` says why) converges. The run issues one warning,
+# `W-fills-unreliable`: 5 markers were seen in too few frames for the data to determine
+# their 3D, and the fills the library makes for them from their neighbours (built below)
+# disagree, so their 3D after they were lost may be far off. The rest of this lesson shows
+# where that judgement comes from and how far off those markers are. How good are the
+# completed entries?
 # Per lost marker: the frames it was seen in, its fill gain, and the error of its
 # completed image points against the true ones (RMS over its missing entries, in units of
 # W's RMS).
@@ -509,8 +520,9 @@ show_recording(rrd)
 #   of a rigid, a template and an affine fill from its neighbours and the model's own fill
 #   (`fill_unseen`, the last step of `reconstruct`).
 # - How far the four fills stray from their median (`fill_spread`) ranks the fills by their
-#   true error; above `SPREAD_MAX` the marker is `unreliable`. The neighbour fill beats the
-#   rigid-neighbour baseline on average.
+#   true error; above `SPREAD_MAX` the marker is `unreliable`, and a run with an unreliable
+#   marker warns (`W-fills-unreliable`). The neighbour fill beats the rigid-neighbour
+#   baseline on average.
 #
 # ## Exercises
 #
@@ -553,6 +565,7 @@ assert g_at[10] > MAX_GAIN > g_at[15] and g_at[40] < 1 and 5.5 < g8 < 6.5
 assert abs(np.sqrt(np.linalg.eigvalsh(cov_mc)[:, -1].max()) / g8 - 1) < 0.05
 assert observed.sum(axis=1).min() < 3 * K + 1 and choose_lags(observed, 3 * K) == (-1, 0, 1)
 assert c.method == "soft_impute" and c.converged
+assert warned == ["W-fills-unreliable"] and len(caught) == 1 and result.unreliable.sum() == 5
 det, und2 = lost[~result.undetermined[lost]], lost[result.undetermined[lost]]
 assert np.all(gain[det] <= MAX_GAIN) and err2d[det].max() < 0.07
 assert np.isinf(gain[und2]).sum() == 1 and np.all(gain[und2] > 5)  # several to hundreds
