@@ -90,7 +90,9 @@ def load_external(name, folder=None, K=None):
     Sequence
         ``W`` (2F, P) the orthographic projection of the ground truth, rows centred;
         ``shapes`` (F, 3, P) centred per frame; ``rotations`` identity (F, 3, 3);
-        ``extra`` with ``file``, ``format`` and ``image_tracks`` when shipped.
+        ``extra`` with ``file``, ``format`` and ``image_tracks`` when shipped, and
+        ``intrinsics`` (3, 3), the camera matrix of those tracks, read from the one
+        ``intrinsics_*.txt`` beside the file (with ``intrinsics_file``).
 
     Raises
     ------
@@ -113,6 +115,14 @@ def load_external(name, folder=None, K=None):
     seq.extra.update(file=str(path), format=fmt)
     if tracks is not None:
         seq.extra["image_tracks"] = tracks
+    found = sorted(path.parent.glob("intrinsics_*.txt"))
+    if tracks is not None and len(found) == 1:  # the camera of the image tracks
+        text = found[0].read_text().replace(",", " ").split()
+        try:
+            seq.extra["intrinsics"] = np.array([float(v) for v in text]).reshape(3, 3)
+        except ValueError as exc:
+            raise ValueError(f"{found[0]} does not hold a 3 x 3 camera matrix ({exc})") from exc
+        seq.extra["intrinsics_file"] = str(found[0])
     return seq
 
 

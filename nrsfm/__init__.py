@@ -8,7 +8,7 @@ from .diagnostics import NRSfMWarning
 from .metrics import e3d, e3d_akhter, rotation_error
 from .pipeline import Reconstruction, reconstruct
 from .settings import METHODS, AdmmSettings, BilinearSettings, MeasurementSettings
-from .settings import RotationSettings, Settings
+from .settings import PerspectiveSettings, RotationSettings, Settings
 
 __version__ = "0.1.0"
 
@@ -18,6 +18,7 @@ __all__ = [
     "BilinearSettings",
     "MeasurementSettings",
     "NRSfMWarning",
+    "PerspectiveSettings",
     "Reconstruction",
     "RotationSettings",
     "Settings",

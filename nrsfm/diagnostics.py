@@ -53,6 +53,16 @@ TRANSPOSE_RATIO = 0.25
 #: largest acceptable number of unreliable tracks (``Reconstruction.unreliable``: fill gain
 #: above ``MAX_GAIN``, fills' spread above ``SPREAD_MAX``) of a run with missing data
 UNRELIABLE_TRACKS_MAX = 0
+#: the orthographic start's flags about its rotations that a perspective refinement turns
+#: into a note: they measure the orthographic model's misfit, and the refinement re-estimates
+#: the rotations and each frame's depth order
+ORTHOGRAPHIC_START_FLAGS = (
+    "W-triplet-bad-minimum",
+    "W-triplet-unconfirmed",
+    "W-samples-disagree",
+    "W-camera-jumps",
+    "W-depth-undetermined",
+)
 
 THRESHOLDS = dict(
     camera_spread_deg=f"< {CAMERA_SPREAD_MIN_DEG}",
@@ -288,3 +298,31 @@ def diagnose_fill(diagnostics, unreliable, by_neighbours=True):
             else "only the model filled them (fill='model')"
         )
         flags.append(text("W-fills-unreliable", n=n, P=unreliable.size, why=why))
+
+
+def diagnose_perspective(diagnostics, perspective):
+    """Turn a run's ``diagnostics`` (of its orthographic start) into those of its perspective
+    refinement (in place): the start's rotation flags (:data:`ORTHOGRAPHIC_START_FLAGS`)
+    become one note, and the refinement's own signals ``depth_ratio`` and
+    ``perspective_iterations`` are added, flagged beyond their thresholds.
+
+    Parameters
+    ----------
+    diagnostics : Diagnostics
+    perspective : nrsfm.stages.perspective.PerspectiveResult
+    """
+    from .stages.perspective import MAX_DEPTH_RATIO
+
+    sig, flags, notes = diagnostics.signals, diagnostics.flags, diagnostics.notes
+    start = [f for f in flags if f.split(":", 1)[0] in ORTHOGRAPHIC_START_FLAGS]
+    flags[:] = [f for f in flags if f not in start]
+    if start:
+        ids = ", ".join(f.split(":", 1)[0][2:] for f in start)  # no id: one id per message
+        notes.append(text("N-orthographic-start", ids=ids))
+    ratio = sig["depth_ratio"] = perspective.depth_ratio
+    sig["perspective_iterations"] = perspective.n_iter
+    if not ratio <= MAX_DEPTH_RATIO:
+        flags.append(text("W-perspective-depth", ratio=ratio, ratio_max=MAX_DEPTH_RATIO))
+    if not perspective.converged:
+        n, tol = perspective.n_iter, perspective.tol
+        flags.append(text("W-perspective-not-converged", n=n, tol=tol))

@@ -14,19 +14,22 @@ import sys
 import time
 import warnings
 from contextlib import contextmanager, nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
 
-from .diagnostics import NRSfMWarning, diagnose, diagnose_fill
+from .diagnostics import NRSfMWarning, diagnose, diagnose_fill, diagnose_perspective
 from .metrics import depth_amplification
 from .settings import KEYWORDS, METHODS, Settings
 from .stages.completion import MAX_GAIN, complete, fill_gain
 from .stages.fill import SPREAD_MAX, fill_unseen
 from .stages.measurement import Factorization, measure, power_of_two_scale
+from .stages.perspective import PerspectiveSettings, check_intrinsics, normalise
+from .stages.perspective import refine_perspective
 from .stages.rotations import RotationResult, estimate_rotations
 from .stages.shape import ShapeResult, solve_pseudo_inverse
+from .stages.shape.bilinear import bilinear_weights
 from .validation import blas_threads, check_problem
 
 __all__ = ["METHODS", "Reconstruction", "reconstruct"]
@@ -72,6 +75,9 @@ class Reconstruction:
         Where the input had missing observations: the completion stage's result (the
         completed W in the input's units, the ``observed`` mask, the method, lags,
         iterations; :attr:`observed`, :attr:`W_completed`).
+    perspective : nrsfm.stages.perspective.PerspectiveResult or None
+        With ``intrinsics=``: the perspective refinement (translations, the start chosen,
+        noise, prior balance, history, reprojection in pixels before and after).
     fill_spread : (P,) ndarray or None
         Where the :attr:`undetermined` points were filled from their neighbours
         (:func:`nrsfm.stages.fill.fill_unseen`): how far each one's four fills stray from
@@ -94,6 +100,7 @@ class Reconstruction:
     diagnostics: object = None
     completion: object = None
     fill_spread: np.ndarray = None
+    perspective: object = None
 
     @property
     def method(self):
@@ -149,7 +156,10 @@ class Reconstruction:
         return self.rotations @ self.shapes
 
     def reprojection_error(self):
-        """RMS of ``W_f - R_f X_f`` over all entries, in the input's units."""
+        """RMS of ``W_f - R_f X_f`` over all entries, in the input's units (with intrinsics:
+        the image distance of the perspective projection, in pixels, over the points seen)."""
+        if self.perspective is not None:
+            return self.perspective.reprojection_after
         proj = (self.rotations[:, :2] @ self.shapes).reshape(self.W.shape)
         p2 = power_of_two_scale(self.W)  # exact rescaling: no overflow/underflow
         d = self.W / p2 - proj / p2
@@ -228,6 +238,7 @@ def reconstruct(
     *,
     shape_solver=None,
     missing=None,
+    intrinsics=None,
     settings=None,
     seed=0,
     progress=False,
@@ -262,6 +273,13 @@ def reconstruct(
         Missing observations: complete W by low-rank completion and run on it (default;
         the result keeps ``completion``, ``observed`` and the tracks the data leave
         ``undetermined``), or refuse.
+    intrinsics : (3, 3) array_like or sequence of 3 or 4 numbers, optional
+        The camera's intrinsics (pixels): a camera matrix, ``(f, cx, cy)`` or ``(fx, fy, cx,
+        cy)``. Given, W is read as pixel tracks of a pinhole camera: the stages run on the
+        normalised coordinates ``K_cam^-1 [u v 1]'`` and a perspective refinement follows
+        (:mod:`nrsfm.stages.perspective`): ``rotations``, ``shapes`` (in units of each frame's
+        centroid depth) and ``perspective`` (translations, history) are its answer, the other
+        fields the orthographic start's (in normalised units). None: the orthographic camera.
     settings : nrsfm.Settings, optional
         Every setting, typed; then none of the three keywords above.
     seed : int
@@ -303,32 +321,85 @@ def reconstruct(
     settings = _settings(settings, method=method, shape_solver=shape_solver, missing=missing)
     # every input check before any computation (the completion can take a while)
     W, K, rotations = check_problem(W, K, rotations, settings.measurement.missing)
+    camera = None
+    if intrinsics is not None:
+        camera = check_intrinsics(intrinsics)
+        if rotations is not None:
+            raise ValueError(
+                "rotations= with intrinsics=: the perspective refinement estimates the "
+                "rotations, so given ones would not be kept; give one or the other"
+            )
+    elif settings.perspective != PerspectiveSettings():
+        raise ValueError(
+            f"settings.perspective={settings.perspective!r} is used only with intrinsics=; "
+            f"without it the camera is orthographic and it would be ignored"
+        )
     say = progress if callable(progress) else (lambda msg: None)
     if progress and not callable(progress):
         say = lambda msg: print(f"[nrsfm] {msg}", file=sys.stderr, flush=True)  # noqa: E731
-    timings = {}
     with blas_threads(blas_thread_limit) if blas_thread_limit else nullcontext():
-        completion = None
-        if np.isnan(W).any():
-            with _timed(timings, "completion"):
-                completion = complete(W, K, settings.measurement)
-            W = completion.W
-        with _timed(timings, "factorize"):
-            meas = measure(W, K)
-        fact = meas.factorization
-        say(f"rank-{3 * K} factorisation of W {W.shape}: residual {fact.residual:.3g}")
-        rotation_stage, single = None, METHODS[settings.method].single
-        if rotations is None:
-            with _timed(timings, "rotations"):
-                rotation_stage = estimate_rotations(
-                    fact.M_hat, K, settings.rotation, single=single, seed=seed, progress=say
+        if camera is None:
+            return _orthographic(W, K, rotations, settings, seed, say)
+        x = normalise(W, camera)
+        res = _orthographic(x.reshape(W.shape), K, None, settings, seed, say, warn=False)
+        one = None
+        if K > 1:  # the continuation's start: its own warnings are not the run's
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                r1 = _orthographic(
+                    x.reshape(W.shape), 1, None, settings, seed, lambda m: None, False
                 )
-            rotations = rotation_stage.rotations
-        with _timed(timings, "shape"):  # the settings' solver, or none
-            if settings.shape is None:
-                shape_stage = solve_pseudo_inverse(meas.Wn, rotations, K)
-            else:
-                shape_stage = settings.shape.solve(meas.Wn, rotations, K, settings.prior, say)
+            one = (r1.rotations, r1.shapes, r1.row_means.reshape(-1, 2))
+        with _timed(res.timings, "perspective"):
+            sigma = res.shape_stage.X_init_singular_values * res.scale
+            a = None if settings.prior is None else bilinear_weights(sigma, K, settings.prior)
+            start = (res.rotations, res.shapes, res.row_means.reshape(-1, 2))
+            persp = refine_perspective(
+                x,
+                K,
+                start,
+                one,
+                a,
+                sigma[0],
+                intrinsics=camera,
+                observed=res.observed,
+                settings=settings.perspective,
+            )
+        say(
+            f"perspective refinement ({persp.start} start, {persp.n_iter} iterations): "
+            f"reprojection {persp.reprojection_before:.3g} -> {persp.reprojection_after:.3g} px"
+        )
+    diagnose_perspective(res.diagnostics, persp)
+    if res.diagnostics.flags:  # one warning per run, every flag in it
+        warnings.warn(res.diagnostics.message, NRSfMWarning, stacklevel=2)
+    return replace(res, rotations=persp.rotations, shapes=persp.shapes, perspective=persp)
+
+
+def _orthographic(W, K, rotations, settings, seed, say, warn=True):
+    """The orthographic stages on checked W: :func:`reconstruct` without intrinsics (its
+    warning: ``warn``; else the flags are only in ``diagnostics``)."""
+    timings = {}
+    completion = None
+    if np.isnan(W).any():
+        with _timed(timings, "completion"):
+            completion = complete(W, K, settings.measurement)
+        W = completion.W
+    with _timed(timings, "factorize"):
+        meas = measure(W, K)
+    fact = meas.factorization
+    say(f"rank-{3 * K} factorisation of W {W.shape}: residual {fact.residual:.3g}")
+    rotation_stage, single = None, METHODS[settings.method].single
+    if rotations is None:
+        with _timed(timings, "rotations"):
+            rotation_stage = estimate_rotations(
+                fact.M_hat, K, settings.rotation, single=single, seed=seed, progress=say
+            )
+        rotations = rotation_stage.rotations
+    with _timed(timings, "shape"):  # the settings' solver, or none
+        if settings.shape is None:
+            shape_stage = solve_pseudo_inverse(meas.Wn, rotations, K)
+        else:
+            shape_stage = settings.shape.solve(meas.Wn, rotations, K, settings.prior, say)
     shapes = shape_stage.shapes
     amp = None if settings.shape is None else depth_amplification(rotations, shapes, K)
     diagnostics = diagnose(meas.Wn, K, fact, rotation_stage, seed, depth_amplification=amp)
@@ -362,8 +433,8 @@ def reconstruct(
     if completion is not None:  # the tracks the fill leaves unreliable: a flag of the run
         vars(result)["fill_gain"] = gain  # its cached property, computed once
         diagnose_fill(diagnostics, result.unreliable, by_neighbours)
-    if diagnostics.flags:  # one warning per run, every flag in it
-        warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=2)
+    if warn and diagnostics.flags:  # one warning per run, every flag in it
+        warnings.warn(diagnostics.message, NRSfMWarning, stacklevel=3)
     return result
 
 

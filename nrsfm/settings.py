@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Optional, Union
 
 from .stages.completion import MeasurementSettings
+from .stages.perspective import PerspectiveSettings
 from .stages.rotations import RotationSettings
 from .stages.shape import SOLVERS, AdmmSettings, BilinearSettings
 from .validation import check_choice
@@ -51,6 +52,8 @@ class Settings:
     shape : BilinearSettings or AdmmSettings or None
         The shape solver; None: ``BilinearSettings()``, or no solver for
         ``pseudo_inverse``.
+    perspective : PerspectiveSettings
+        The perspective refinement (used with ``reconstruct(..., intrinsics=)`` only).
 
     Raises
     ------
@@ -71,10 +74,15 @@ class Settings:
     measurement: MeasurementSettings = MeasurementSettings()
     rotation: RotationSettings = RotationSettings()
     shape: Union[BilinearSettings, AdmmSettings, None] = None
+    perspective: PerspectiveSettings = PerspectiveSettings()
 
     def __post_init__(self):
         check_choice("method", self.method, METHODS)
-        for name, cls in (("measurement", MeasurementSettings), ("rotation", RotationSettings)):
+        for name, cls in (
+            ("measurement", MeasurementSettings),
+            ("rotation", RotationSettings),
+            ("perspective", PerspectiveSettings),
+        ):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{name} must be a {cls.__name__}; got {getattr(self, name)!r}")
         if self.method == "pseudo_inverse":

@@ -228,6 +228,42 @@ CATALOG = {
         "where the shapes are used (`result.shapes[:, :, ~result.unreliable]`).",
         dict(n=15, P=992, why="their fills from the neighbours disagree"),
     ),
+    "N-orthographic-start": Entry(
+        "the orthographic start raised the flags {ids}: a pinhole camera's tracks do not fit the "
+        "orthographic model exactly, and the perspective refinement re-estimates the rotations "
+        "and each frame's depth order from that start; no action needed unless a warning comes "
+        "with it",
+        "`reconstruct(..., intrinsics=)` and the orthographic start raised one of "
+        "`ORTHOGRAPHIC_START_FLAGS` = {ORTHOGRAPHIC_START_FLAGS}",
+        "the orthographic rotation stage measured the misfit of its camera model; the answer is "
+        "the perspective fit's.",
+        "none; read the perspective warnings if any.",
+        dict(ids="camera-jumps"),
+        where="`nrsfm/diagnostics.py` (`diagnose_perspective`)",
+    ),
+    "W-perspective-depth": Entry(
+        "the perspective fit puts one point {ratio:.3g} times as deep as another in one frame "
+        "(warned above {ratio_max:g}, a camera within 11/9 of the object's radius): the images "
+        "do not determine the depth and every start left it; check the intrinsics (the focal "
+        "length in pixels, the principal point) or use a lower K",
+        "`depth_ratio` of the perspective answer above `MAX_DEPTH_RATIO` = {MAX_DEPTH_RATIO:g} "
+        "(`nrsfm.stages.perspective`)",
+        "points were pushed towards the camera's centre and away: the shapes' depth is not "
+        "measured.",
+        "check the intrinsics; lower K; use frames with more camera motion.",
+        dict(ratio=47.2, ratio_max=10),
+        where="`nrsfm/diagnostics.py` (`diagnose_perspective`)",
+    ),
+    "W-perspective-not-converged": Entry(
+        "the perspective refinement stopped after its {n} iterations "
+        "(PerspectiveSettings max_iter) while E still fell by more than tol = {tol:g} of itself: "
+        "the answer depends on where it stopped; raise max_iter",
+        "the chosen start's fit reached `PerspectiveSettings.max_iter` iterations",
+        "the shapes and cameras are not a minimum of the refinement's objective.",
+        "raise `PerspectiveSettings(max_iter=...)`.",
+        dict(n=200, tol=1e-6),
+        where="`nrsfm/diagnostics.py` (`diagnose_perspective`)",
+    ),
     "W-ignored-arrays": Entry(
         "nrsfm run ignores arrays of {inp} that it does not read: {ignored} (it reads {keys}); "
         "rename one if it was meant as input",

@@ -229,6 +229,12 @@ def _write(tmp_path, name, **arrays):
     return path
 
 
+def _text(tmp_path, content):
+    path = tmp_path / f"k{hashlib.sha256(content.encode()).hexdigest()[:8]}.txt"
+    path.write_text(content)
+    return path
+
+
 def _bad_inputs(tmp_path, seq, good):
     """name -> (argument list, fragment expected in the message)."""
     (tmp_path / "empty.npz").write_bytes(b"")
@@ -294,6 +300,19 @@ def _bad_inputs(tmp_path, seq, good):
             ["run", _write(tmp_path, "nr.npz", W=seq.W, K=2), "--given-rotations"],
             "rotations",
         ),
+        "principal without focal": (["run", good, "--principal", "1", "2"], "with --focal"),
+        "focal without principal": (["run", good, "--focal", "800"], "--principal CX CY"),
+        "focal 0": (["run", good, "--focal", "0"], "positive"),
+        "intrinsics missing": (["run", good, "--intrinsics", tmp_path / "k.txt"], "cannot read"),
+        "intrinsics 8 numbers": (["run", good, "--intrinsics", _text(tmp_path, "1 " * 8)], "9"),
+        "intrinsics not upper": (
+            ["run", good, "--intrinsics", _text(tmp_path, "1 0 0 1 1 0 0 0 1")],
+            "upper triangular",
+        ),
+        "camera and given rotations": (
+            ["run", good, "--focal", "800", "--principal", "0", "0", "--given-rotations"],
+            "one or the other",
+        ),
         "output is a folder": (["run", good, "-o", tmp_path], "existing folder"),
         "output not .npz": (["run", good, "-o", tmp_path / "o.txt"], "name it so"),
         "output folder missing": (["run", good, "-o", tmp_path / "no" / "o.npz"], "does not exist"),
@@ -340,6 +359,13 @@ CASES = [
     "rotations bad",
     "edges bad",
     "given rotations absent",
+    "principal without focal",
+    "focal without principal",
+    "focal 0",
+    "intrinsics missing",
+    "intrinsics 8 numbers",
+    "intrinsics not upper",
+    "camera and given rotations",
     "output is a folder",
     "output not .npz",
     "output folder missing",

@@ -179,7 +179,10 @@ def test_load_external_struct_format(tmp_path):
     assert np.allclose(s.W, Xc[:, :2].reshape(2 * F, -1))
     assert np.allclose(s.rotations, np.eye(3))
     assert s.extra["image_tracks"].shape == (F, 2, P - 1)
-    assert s.K == dt.EXTERNAL["hulk"][2]
+    assert s.K == dt.EXTERNAL["hulk"][2] and "intrinsics" not in s.extra
+    (folder / "intrinsics_hulk.txt").write_text("800, 0, 320\n0, 790, 240\n0, 0, 1\n")
+    A = load_external("hulk", tmp_path).extra["intrinsics"]
+    np.testing.assert_array_equal(A, [[800, 0, 320], [0, 790, 240], [0, 0, 1]])
 
 
 def test_load_external_tracks3d_format(tmp_path, monkeypatch):

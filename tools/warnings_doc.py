@@ -22,10 +22,13 @@ def constants():
     """Threshold name -> value, for the ``{NAME}`` fields of the catalog's triggers."""
     from nrsfm import diagnostics
     from nrsfm.cli.run import INPUT_KEYS
+    from nrsfm.stages.perspective import MAX_DEPTH_RATIO
     from nrsfm.stages.shape.closed_form import NULLSPACE_GAP_MIN
 
     out = {name: value for name, value in vars(diagnostics).items() if name.isupper()}
     out.update(NULLSPACE_GAP_MIN=NULLSPACE_GAP_MIN, INPUT_KEYS=", ".join(INPUT_KEYS))
+    out.update(MAX_DEPTH_RATIO=MAX_DEPTH_RATIO)
+    out["ORTHOGRAPHIC_START_FLAGS"] = ", ".join(diagnostics.ORTHOGRAPHIC_START_FLAGS)
     return out
 
 

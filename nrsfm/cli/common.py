@@ -85,6 +85,72 @@ def add_reconstruction_options(p, rrd_name, quiet=True):
         p.add_argument("--quiet", action="store_true", help="no progress messages")
 
 
+def _positive_float(text):
+    """argparse type: a finite number above 0 (``--focal``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number; got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a positive number; got {text}")
+    return value
+
+
+def add_camera_options(p):
+    """``--intrinsics FILE`` or ``--focal PIXELS [--principal CX CY]``: a pinhole camera,
+    so that a perspective refinement follows the orthographic stages."""
+    g = p.add_mutually_exclusive_group()
+    text = (
+        "the camera matrix of the pixel tracks (a text file of 3 x 3 numbers, rows on lines, "
+        "spaces or commas): a perspective refinement follows the orthographic stages"
+    )
+    g.add_argument("--intrinsics", metavar="FILE", help=text)
+    text = "focal length in pixels (square pixels, no skew), instead of --intrinsics"
+    g.add_argument("--focal", type=_positive_float, metavar="PIXELS", help=text)
+    text = (
+        "principal point in pixels with --focal (default: the image centre, when the input "
+        "has image_size as nrsfm track writes it)"
+    )
+    p.add_argument("--principal", nargs=2, type=float, metavar=("CX", "CY"), help=text)
+
+
+def camera(args, image_size=None):
+    """The intrinsics the camera options give (a (3, 3) array), or None (orthographic).
+
+    ``image_size`` (height, width) gives the default principal point, the image centre.
+    Raises UsageError for ``--principal`` without ``--focal`` or no principal point, and
+    ValueError for an unreadable or invalid ``--intrinsics`` file (named).
+    """
+    import numpy as np
+
+    from ..stages.perspective import check_intrinsics
+
+    if args.principal is not None and args.focal is None:
+        raise UsageError("--principal goes with --focal (--intrinsics holds its own)")
+    if args.intrinsics is not None:
+        path = Path(args.intrinsics).expanduser()
+        try:
+            values = path.read_text().replace(",", " ").split()
+            A = np.array([float(v) for v in values])
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"cannot read --intrinsics {path}: {one_line(exc)}") from None
+        if A.size != 9:
+            raise ValueError(f"--intrinsics {path} must hold 9 numbers (3 x 3); got {A.size}")
+        try:
+            return check_intrinsics(A.reshape(3, 3))
+        except ValueError as exc:
+            raise ValueError(f"--intrinsics {path}: {exc}") from None
+    if args.focal is None:
+        return None
+    if args.principal is not None:
+        cx, cy = args.principal
+    elif image_size is not None:
+        cy, cx = (float(n) / 2 for n in image_size)
+    else:
+        raise UsageError("give --principal CX CY with --focal (the input has no image_size)")
+    return check_intrinsics((args.focal, cx, cy))
+
+
 def output_path(path, what, suffix=".npz"):
     """The output file ``path`` (``~`` expanded), checked writable before the work
     (ValueError / OSError otherwise: exit status 1); a name not ending in ``suffix`` (what is

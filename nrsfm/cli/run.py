@@ -14,8 +14,8 @@ from ..pipeline import reconstruct
 from ..sequence import Sequence
 from ..validation import check_K, check_measurements, check_rotations, check_shapes
 from ..warnings_catalog import text as warning_text
-from .common import UsageError, add_reconstruction_options, one_line, output_path
-from .common import positive_int, print_report, rrd_path, save_rrd
+from .common import UsageError, add_camera_options, add_reconstruction_options, camera
+from .common import one_line, output_path, positive_int, print_report, rrd_path, save_rrd
 
 #: Arrays ``nrsfm run`` reads from its input ``.npz``.
 INPUT_KEYS = ("W", "K", "shapes", "rotations", "edges")
@@ -92,7 +92,8 @@ def _read_input(inp, K_arg, given_rotations):
     if ignored:
         keys = ", ".join(INPUT_KEYS)
         warnings.warn(warning_text("W-ignored-arrays", inp=inp, ignored=ignored, keys=keys))
-    return W, K, truth, used
+    size = data.get("image_size")
+    return W, K, truth, used, None if size is None else np.asarray(size).ravel()[:2]
 
 
 def _output_arrays(result, K, errs):
@@ -105,13 +106,23 @@ def _output_arrays(result, K, errs):
     if result.rotation_stage is not None:
         rs = result.rotation_stage
         arrays.update(G=rs.G, per_triplet_rotations=rs.per_triplet, kept=rs.kept)
+    if result.perspective is not None:
+        p = result.perspective
+        arrays.update(translations=p.translations, intrinsics=p.intrinsics)
+        arrays.update({f"perspective_{k}": np.asarray(v) for k, v in p.history.items()})
     return dict(arrays, **{k: np.float64(v) for k, v in errs.items()})
 
 
 def cmd_run(args):
     """``nrsfm run INPUT.npz [-o OUT.npz] [--rrd [PATH]]``."""
     inp = Path(args.input).expanduser()
-    W, K, truth, used = _read_input(inp, args.K, args.given_rotations)
+    W, K, truth, used, image_size = _read_input(inp, args.K, args.given_rotations)
+    intrinsics = camera(args, image_size)
+    if intrinsics is not None and args.given_rotations:
+        raise UsageError(
+            "--given-rotations and a camera: the perspective refinement "
+            "estimates the rotations; give one or the other"
+        )
     if not used.all():
         print(
             f"  {int((~used).sum())} of {used.size} tracks seen in fewer than 2 frames not "
@@ -128,6 +139,7 @@ def cmd_run(args):
     R = truth["rotations"]
     kw = dict(method=args.method, seed=args.seed, shape_solver=args.shape_solver)
     kw.update(rotations=R if args.given_rotations else None, progress=not args.quiet)
+    kw.update(intrinsics=intrinsics)
     result = reconstruct(W, K, **kw)
     seq = None
     if truth["shapes"] is not None:
@@ -150,8 +162,9 @@ def add_run_command(sub):
         help="reconstruct W from an .npz or .mat file and write the result",
         epilog="The output .npz holds rotations (F, 3, 3), shapes (F, 3, P), X_init, W, "
         "row_means, scale, K, method, version, shape_* (shape-stage history), G, "
-        "per_triplet_rotations, kept (rotation stage) and e3d, e3d_akhter, e_R when the input "
-        "has ground truth; see docs/cli.md.",
+        "per_triplet_rotations, kept (rotation stage), with a camera translations, intrinsics, "
+        "perspective_* (refinement history), and e3d, e3d_akhter, e_R when the input has "
+        "ground truth; see docs/cli.md.",
     )
     text = (
         ".npz with W (2F, P) or (F, 2, P) (optional: K, ground truth shapes, rotations, "
@@ -163,5 +176,6 @@ def add_run_command(sub):
     p.add_argument("-o", "--output", metavar="PATH", help=text)
     text = "use the file's rotations instead of estimating them"
     p.add_argument("--given-rotations", action="store_true", help=text)
+    add_camera_options(p)
     add_reconstruction_options(p, "OUTPUT_NAME.rrd")
     p.set_defaults(func=cmd_run)

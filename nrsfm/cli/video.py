@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import add_reconstruction_options, output_path, positive_int, print_report
+from .common import add_camera_options, add_reconstruction_options, camera, output_path
+from .common import positive_int, print_report
 from .common import rrd_path, seed, write_recording
 
 
@@ -67,6 +68,7 @@ def cmd_video(args):
 
     out = output_path(args.output, "-o") if args.output else None  # before the work
     rrd = rrd_path(args, Path(args.video).stem + ".rrd")
+    camera(args, (0, 0))  # the camera options, checked before the tracking
     truth = None
     if args.ground_truth is not None:
         from data_tools.video_truth import load_ground_truth, score_tracks
@@ -75,6 +77,7 @@ def cmd_video(args):
     frames, tracks = _track(args, check=lambda fr: _check_truth(truth, fr, args))
     K = 1 if args.K is None else args.K
     kw = dict(method=args.method, seed=args.seed, shape_solver=args.shape_solver)
+    kw.update(intrinsics=camera(args, frames.shape[1:3]))
     missing = "complete" if args.complete_tracks else "auto"
     vr = reconstruct_tracks(tracks.W, K, missing=missing, progress=not args.quiet, **kw)
     if vr.missing_data:
@@ -170,6 +173,7 @@ def add_video_commands(subparsers):
     _add_tracking(p)
     text = "number of shape bases (default: 1, the paper's dense setting)"
     p.add_argument("--K", type=positive_int, help=text)
+    add_camera_options(p)
     add_reconstruction_options(p, "VIDEO_NAME.rrd", quiet=False)
     text = "reconstruct only the tracks seen in every frame (default: every track seen in 2+"
     p.add_argument("--complete-tracks", action="store_true", help=text + " frames)")

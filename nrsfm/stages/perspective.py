@@ -1,0 +1,558 @@
+"""Perspective refinement: pinhole cameras with translation and the low-rank shape under the
+organic prior, started from the orthographic answer.
+
+The paper's camera is orthographic (Conclusion: it may fail under strong perspective). With
+the camera's intrinsics, the image tracks become normalised coordinates ``x = K_cam^-1 [u v 1]'``
+and this stage fits the pinhole model
+
+    x_fp = pi(R_f S_fp + (a_f, b_f, 1)),      pi(Y) = (Y_1 / Y_3, Y_2 / Y_3),
+    S_f = sum_k C_fk B_k   (3 x P, centred: sum_p B_k[:, p] = 0),
+
+by minimising
+
+    E = 1/2 sum_fp m_fp |pi(...) - x_fp|^2 + 1/2 sum_k reg_k (|C_k|^2 + |B_k|^2),      (*)
+
+``m_fp`` the observed mask, ``reg_k = mu a_k`` the orthographic shape stage's weights (the
+organic prior of Eq. 10 in the factored form of the bilinear solver, ``a_1 = 0``).
+
+``S_f`` is the camera-frame shape divided by the depth of its centroid: ``(R_f X_f + t_f) /
+t_f,z = R_f S_f + (a_f, b_f, 1)``. Dividing each frame by a number keeps ``X#`` at rank K, so
+(*) is the low-rank perspective model with its scale ambiguity removed, and the orthographic
+answer on ``x`` (shapes in the same units at weak perspective) is its start. Two choices the
+orthographic model cannot make are made at the start: per frame, ``(R_f, S_f)`` or
+``(Rz(pi) R_f, -S_f)`` (the same orthographic image, depths reversed), by the perspective
+residual. Two starts are run: *direct* (the rank-K orthographic answer) and *continuation*
+(the rank-1 perspective fit, then K - 1 more columns started small); the one with the lower E
+is the answer (:func:`refine_perspective`).
+
+Minimised by Levenberg-Marquardt with the analytic Jacobian; the per-frame blocks (rotation,
+translation, coefficients) are eliminated (Schur complement, as in bundle adjustment), the
+basis solved with its centring as a constraint.
+
+References: Xiao and Kanade (2005), Del Bue et al. (2006), Hartley and Vidal (2008) on
+perspective NRSfM; Triggs et al. (2000) on the Schur complement in bundle adjustment.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from ..validation import check_integer, check_positive
+
+__all__ = [
+    "PerspectiveResult",
+    "PerspectiveSettings",
+    "check_intrinsics",
+    "normalise",
+    "refine_perspective",
+]
+
+_RZ = np.diag([-1.0, -1.0, 1.0])  # Rz(pi): the orthographic image's depth reversal
+_SMALL = 1e-3  # the continuation's new columns, relative to the first column's size
+#: rounds of depth orders re-chosen at the answer and the fit repeated, at most
+MAX_FLIP_ROUNDS = 3
+#: the largest ratio of two points' depths in one frame for an answer to count as a camera
+#: outside the object: (d + r) / (d - r) = 10 puts the camera d = 11/9 r from the centroid
+#: of an object of radius r; a fit beyond it stretches points towards the camera's centre
+#: and away (the depth the data leave undetermined), and loses to any answer within it
+MAX_DEPTH_RATIO = 10.0
+
+
+@dataclass(frozen=True)
+class PerspectiveSettings:
+    """Settings of the perspective refinement.
+
+    Parameters
+    ----------
+    max_iter : int
+        Levenberg-Marquardt iterations per start, at most.
+    tol : float
+        Stop when an iteration lowers E by less than ``tol E``.
+
+    Raises
+    ------
+    ValueError
+        ``max_iter`` below 1, ``tol`` not positive.
+    """
+
+    max_iter: int = 200
+    tol: float = 1e-6
+
+    def __post_init__(self):
+        check_integer(self.max_iter, "max_iter", minimum=1)
+        check_positive("tol", self.tol)
+
+
+@dataclass
+class PerspectiveResult:
+    """The perspective refinement (:func:`refine_perspective`).
+
+    Attributes
+    ----------
+    rotations : (F, 3, 3) ndarray
+    translations : (F, 3) ndarray
+        ``(a_f, b_f, 1)``: the world origin (the shape's centroid) in each camera, in units
+        of its depth.
+    shapes : (F, 3, P) ndarray
+        ``S_f`` in the world frame, in units of the centroid's depth in frame f.
+    intrinsics : (3, 3) ndarray
+    start : {"direct", "continuation"}
+        The start whose E was lower: the rank-K orthographic answer, or the rank-1
+        perspective fit with K - 1 small columns added.
+    objectives : dict
+        Final E of each start run.
+    noise : float
+        RMS noise of x per degree of freedom of the fit without prior (units of x).
+    mu : float
+        The prior's balance from ``noise``; ``reg = mu a`` the weights of (*).
+    reg : (K,) ndarray
+    history : dict of ndarrays
+        Per iteration of the chosen start's last fit: ``cost`` (E), ``data_term``, ``damping``.
+    n_iter : int
+    converged : bool
+        The last iteration lowered E by less than ``tol E`` (or no step could lower it).
+    tol : float
+        The settings' ``tol``.
+    depth_ratio : float
+        The largest ratio of two points' depths in one frame: above ``MAX_DEPTH_RATIO`` the
+        fit put points near the camera's centre (no start stayed within it).
+    reprojection_before, reprojection_after : float
+        RMS image distance in pixels (of the observed points): the orthographic answer's
+        orthographic projection, and the refined perspective projection.
+    """
+
+    rotations: np.ndarray
+    translations: np.ndarray
+    shapes: np.ndarray
+    intrinsics: np.ndarray
+    start: str
+    objectives: dict
+    noise: float
+    mu: float
+    reg: np.ndarray
+    history: dict = field(default_factory=dict)
+    n_iter: int = 0
+    converged: bool = False
+    depth_ratio: float = float("nan")
+    tol: float = float("nan")
+    reprojection_before: float = float("nan")
+    reprojection_after: float = float("nan")
+
+    @property
+    def camera_points(self):
+        """(F, 3, P): the points in each camera, ``R_f S_f + t_f`` (depth units)."""
+        return self.rotations @ self.shapes + self.translations[:, :, None]
+
+
+def check_intrinsics(intrinsics):
+    """The (3, 3) camera matrix of ``intrinsics``.
+
+    Parameters
+    ----------
+    intrinsics : (3, 3) array_like or sequence of 3 or 4 numbers
+        A camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, or ``(f, cx, cy)``, or
+        ``(fx, fy, cx, cy)`` (pixels).
+
+    Returns
+    -------
+    (3, 3) ndarray
+
+    Raises
+    ------
+    ValueError
+        Another shape, a non-finite entry, a focal length not positive, a last row other
+        than ``(0, 0, 1)`` or a non-zero entry below the diagonal.
+
+    Examples
+    --------
+    >>> check_intrinsics((800, 320, 240))[0]
+    array([800.,   0., 320.])
+    """
+    try:
+        A = np.array(intrinsics, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"intrinsics must be a 3 x 3 camera matrix or (f, cx, cy) or (fx, fy, cx, cy); "
+            f"got {intrinsics!r}"
+        ) from None
+    if A.shape in ((3,), (4,)):
+        fx, fy, cx, cy = (A[0], A[0], A[1], A[2]) if A.size == 3 else A
+        A = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    if A.shape != (3, 3):
+        raise ValueError(
+            f"intrinsics must be a 3 x 3 camera matrix or (f, cx, cy) or (fx, fy, cx, cy); "
+            f"got shape {A.shape}"
+        )
+    if not np.all(np.isfinite(A)):
+        raise ValueError("intrinsics must be finite")
+    if not (A[0, 0] > 0 and A[1, 1] > 0):
+        raise ValueError(f"intrinsics: focal lengths must be positive; got {A[0, 0]}, {A[1, 1]}")
+    if not (np.array_equal(A[2], [0.0, 0.0, 1.0]) and A[1, 0] == 0):
+        raise ValueError(
+            f"intrinsics: a camera matrix is upper triangular with last row "
+            f"(0, 0, 1); got {A.tolist()}"
+        )
+    return A
+
+
+def normalise(W, intrinsics):
+    """Normalised image coordinates (F, 2, P) of pixel tracks W (2F, P): ``K_cam^-1 [u v 1]'``.
+
+    NaN (a point not seen) stays NaN.
+    """
+    A = check_intrinsics(intrinsics)
+    u = np.asarray(W, float).reshape(-1, 2, np.shape(W)[-1])
+    y = (u[:, 1] - A[1, 2]) / A[1, 1]
+    x = (u[:, 0] - A[0, 2] - A[0, 1] * y) / A[0, 0]
+    return np.stack([x, y], axis=1)
+
+
+def _pixels(xn, A):
+    """Pixels (F, 2, P) of normalised coordinates (F, 2, P)."""
+    return np.stack(
+        [A[0, 0] * xn[:, 0] + A[0, 1] * xn[:, 1] + A[0, 2], A[1, 1] * xn[:, 1] + A[1, 2]], axis=1
+    )
+
+
+def _skew(v):
+    """(..., 3, 3) cross-product matrices of (..., 3) vectors."""
+    O = np.zeros(v.shape[:-1] + (3, 3))
+    O[..., 0, 1], O[..., 0, 2], O[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    return O - np.swapaxes(O, -1, -2)
+
+
+def _rodrigues(w):
+    """(F, 3, 3) rotations exp([w]x) of (F, 3) rotation vectors."""
+    th = np.linalg.norm(w, axis=1)[:, None, None]
+    Kx = _skew(w)
+    small = th < 1e-8
+    a = np.where(small, 1.0, np.sin(th) / np.where(small, 1.0, th))
+    b = np.where(small, 0.5, (1 - np.cos(th)) / np.where(small, 1.0, th) ** 2)
+    return np.eye(3) + a * Kx + b * (Kx @ Kx)
+
+
+class _Fit:
+    """(*) for one set of data: the residual, E and the Levenberg-Marquardt steps."""
+
+    def __init__(self, x, mask, reg):
+        self.x, self.m, self.reg = x, mask, np.asarray(reg, float)
+
+    def residual(self, R, ab, C, B):
+        S = np.einsum("fk,kcp->fcp", C, B)
+        Y = R @ S
+        Y[:, :2] += ab[:, :, None]
+        Y[:, 2] += 1.0
+        return Y, S, self.m[:, None] * (Y[:, :2] / Y[:, 2:3] - self.x)
+
+    def cost(self, R, ab, C, B):
+        Y, _, r = self.residual(R, ab, C, B)
+        if not np.all(Y[:, 2][self.m > 0] > 0):
+            return np.inf, np.inf  # a point behind its camera
+        data = 0.5 * float(np.sum(r**2))
+        prior = 0.5 * float(np.sum(self.reg * (np.sum(C**2, 0) + np.sum(B**2, axis=(1, 2)))))
+        return data + prior, data
+
+    def normal_equations(self, R, ab, C, B):
+        """Gradient and Gauss-Newton blocks of (*): frames (F, nf), points (P, 3K), cross."""
+        Y, S, r = self.residual(R, ab, C, B)
+        F, K, P = C.shape[0], C.shape[1], B.shape[2]
+        Z = Y[:, 2]
+        J = np.zeros((F, P, 2, 3))  # d pi / d Y, masked
+        J[..., 0, 0] = J[..., 1, 1] = self.m / Z
+        J[..., 0, 2], J[..., 1, 2] = -self.m * Y[:, 0] / Z**2, -self.m * Y[:, 1] / Z**2
+        RS = np.swapaxes(R @ S, 1, 2)  # (F, P, 3)
+        Jw = -J @ _skew(RS)  # rotation increment: d(R S) = w x (R S)
+        RB = np.moveaxis(R[:, None] @ B[None], (1, 3), (3, 1))  # (F, P, 3, K): R_f B_k
+        Jc = J @ RB
+        JR = J @ R[:, None]  # (F, P, 2, 3)
+        Jb = (JR[:, :, :, None, :] * C[:, None, None, :, None]).reshape(F, P, 2, 3 * K)
+        Jf = np.concatenate([Jw, J[..., :2], Jc], axis=3)
+        rr = np.swapaxes(r, 1, 2)[..., None]  # (F, P, 2, 1)
+        nf, nb = Jf.shape[3], 3 * K
+        Jf2, Jb2 = Jf.reshape(F, 2 * P, nf), Jb.transpose(1, 0, 2, 3).reshape(P, 2 * F, nb)
+        A = np.swapaxes(Jf2, 1, 2) @ Jf2
+        Bp = np.swapaxes(Jb2, 1, 2) @ Jb2
+        Wc = np.swapaxes(Jf, 2, 3) @ Jb  # (F, P, nf, nb)
+        gf = (np.swapaxes(Jf, 2, 3) @ rr).sum(1)[..., 0]
+        gb = (np.swapaxes(Jb, 2, 3) @ rr).sum(0)[..., 0]
+        A[:, 5:, 5:] += np.diag(self.reg)  # the prior (*), on C and B
+        gf[:, 5:] += self.reg * C
+        rb = np.repeat(self.reg, 3)
+        Bp += np.diag(rb)
+        gb += B.transpose(2, 0, 1).reshape(P, 3 * K) * rb
+        return A, Bp, Wc, gf, gb
+
+    def step(self, blocks, lam):
+        """The damped step (Marquardt's scaling): the larger of the frames' and the points'
+        block sets is eliminated; the basis keeps sum_p dB_p = 0 (a multiplier)."""
+        A, Bp, Wc, gf, gb = blocks
+        (F, nf), (P, nb) = gf.shape, gb.shape
+        Ad = A + lam * np.einsum("fii->fi", A)[:, :, None] * np.eye(nf) + 1e-15 * np.eye(nf)
+        Bd = Bp + lam * np.einsum("pii->pi", Bp)[:, :, None] * np.eye(nb) + 1e-15 * np.eye(nb)
+        if F * nf < P * nb:
+            return self._keep_frames(Ad, Bd, Wc, gf, gb)
+        return self._keep_points(Ad, Bd, Wc, gf, gb)
+
+    @staticmethod
+    def _keep_frames(Ad, Bd, Wc, gf, gb):
+        """Points eliminated: a dense system in the frames' steps and the multiplier nu."""
+        (F, nf), (P, nb) = gf.shape, gb.shape
+        n = F * nf
+        Bi = np.linalg.inv(Bd)
+        Q = Wc @ Bi[None]  # W_fp Bd_p^-1
+        flat = lambda T: T.transpose(0, 2, 1, 3).reshape(n, P * nb)  # noqa: E731
+        H = -(flat(Q) @ flat(Wc).T).reshape(F, nf, F, nf)
+        H[np.arange(F), :, np.arange(F), :] += Ad
+        U = Q.sum(1).reshape(n, nb)
+        M = np.block([[H.reshape(n, n), -U], [-U.T, -Bi.sum(0)]])
+        Qg = (Q @ gb[None, :, :, None]).sum(1)[..., 0]
+        rhs = np.concatenate([-gf.ravel() + Qg.ravel(), (Bi @ gb[..., None]).sum(0)[..., 0]])
+        sol = np.linalg.solve(M, rhs)
+        df = sol[:n].reshape(F, nf)
+        Wd = (np.swapaxes(Wc, 2, 3) @ df[:, None, :, None]).sum(0)[..., 0]
+        db = -(Bi @ (gb + Wd + sol[n:])[..., None])[..., 0]
+        return df, db
+
+    @staticmethod
+    def _keep_points(Ad, Bd, Wc, gf, gb):
+        """Frames eliminated: the Schur complement onto the basis, the centring by nu."""
+        (F, nf), (P, nb) = gf.shape, gb.shape
+        Li = np.linalg.inv(np.linalg.cholesky(Ad))
+        Wf = np.swapaxes(Wc, 1, 2).reshape(F, nf, P * nb)
+        N = (Li @ Wf).reshape(F * nf, P * nb)  # L^-1 W_f
+        h = (Li @ gf[:, :, None])[..., 0]  # L^-1 g_f
+        S = -(N.T @ N)  # the Schur complement onto the basis (SPD: the step is damped)
+        S4 = S.reshape(P, nb, P, nb)  # a view
+        S4[np.arange(P), :, np.arange(P), :] += Bd
+        c = cho_factor(S)
+        y = cho_solve(c, -gb.ravel() + N.T @ h.ravel())
+        Y = cho_solve(c, np.tile(np.eye(nb), (P, 1)))  # S^-1 E' with E = [I ... I]
+        nu = np.linalg.solve(Y.reshape(P, nb, nb).sum(0), y.reshape(P, nb).sum(0))
+        db = y - Y @ nu  # the centring: sum_p dB_p = 0
+        df = -(np.swapaxes(Li, 1, 2) @ (h + (N @ db).reshape(F, nf))[:, :, None])[..., 0]
+        return df, db.reshape(P, nb)
+
+    def minimise(self, R, ab, C, B, st):
+        """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
+        actual to the predicted decrease (Nielsen 1999): the final state and the history."""
+        E, data = self.cost(R, ab, C, B)
+        hist = {"cost": [E], "data_term": [data], "damping": [np.nan]}
+        lam, nu, converged, K = 1e-3, 2.0, False, C.shape[1]
+        for _ in range(st.max_iter):
+            blocks = self.normal_equations(R, ab, C, B)
+            while True:
+                df, db = self.step(blocks, lam)
+                new = (
+                    _rodrigues(df[:, :3]) @ R,
+                    ab + df[:, 3:5],
+                    C + df[:, 5:],
+                    B + db.reshape(-1, K, 3).transpose(1, 2, 0),
+                )
+                En, dn = self.cost(*new)
+                if En < E:
+                    break
+                lam, nu = lam * nu, 2 * nu
+                if lam > 1e12:  # no step lowers E: a stationary point
+                    return (R, ab, C, B), hist, True
+            A, Bp, _, gf, gb = blocks  # the model's decrease: (-g'd + lam d'Dd) / 2
+            dD = np.einsum("fii->fi", A) * df**2, np.einsum("pii->pi", Bp) * db**2
+            pred = 0.5 * (lam * (dD[0].sum() + dD[1].sum()) - (gf * df).sum() - (gb * db).sum())
+            rho = (E - En) / pred if pred > 0 else 0.0
+            lam, nu = max(lam * max(1 / 3, 1 - (2 * rho - 1) ** 3), 1e-12), 2.0
+            R, ab, C, B = new
+            converged = E - En <= st.tol * E
+            E = En
+            for k, v in (("cost", E), ("data_term", dn), ("damping", lam)):
+                hist[k].append(v)
+            if converged:
+                break
+        return (R, ab, C, B), hist, converged
+
+
+def _factors(shapes, K):
+    """Balanced rank-K factors C (F, K), B (K, 3, P) of shapes (F, 3, P) (X# = C B)."""
+    F, _, P = shapes.shape
+    U, s, Vt = np.linalg.svd(shapes.reshape(F, 3 * P), full_matrices=False)
+    r = np.sqrt(s[:K])
+    return U[:, :K] * r, (r[:, None] * Vt[:K]).reshape(K, 3, P)
+
+
+def _depth_orders(fit, R, ab, C, B):
+    """Per frame: does the other depth order, ``(Rz(pi) R_f, -C_f)`` (the same orthographic
+    image), have the lower perspective residual, and does it keep every point ahead?"""
+    r, (Yf, _, rf) = fit.residual(R, ab, C, B)[2], fit.residual(_RZ @ R, ab, -C, B)
+    lower = np.sum(rf**2, axis=(1, 2)) < np.sum(r**2, axis=(1, 2))
+    return lower, np.all(Yf[:, 2] > 0, axis=1)
+
+
+def _flip(state, flip):
+    R, ab, C, B = state
+    return np.where(flip[:, None, None], _RZ @ R, R), ab, np.where(flip[:, None], -C, C), B
+
+
+def _start(rotations, shapes, centroids, K):
+    """The start from an orthographic answer (normalised units): rank-K factors of the
+    shapes, the image centroids as (a, b)."""
+    C, B = _factors(np.asarray(shapes, float), K)
+    return np.array(rotations, float), np.array(centroids, float), C, B
+
+
+def _orders(fit, state):
+    """``state`` with its frames' depth orders chosen by their residuals: each frame's own
+    choice, and the majority's for every frame when it differs (a frame whose residuals
+    barely differ guesses); those with every point in front of the cameras."""
+    lower, ahead = _depth_orders(fit, *state)
+    own, majority = lower & ahead, (lower.mean() > 0.5) & ahead
+    out = [_flip(state, own)] + ([_flip(state, majority)] if (own != majority).any() else [])
+    return [s for s in out if np.isfinite(fit.cost(*s)[0])]
+
+
+def _fit_orders(fit, state, st):
+    """Minimise (*) from ``state``; where another depth order lowers a frame's residual at
+    the answer, flip those frames and minimise again (at most ``MAX_FLIP_ROUNDS`` times):
+    the order is discrete, the fit continuous."""
+    state, hist, converged = fit.minimise(*state, st)
+    for _ in range(MAX_FLIP_ROUNDS):
+        flip = np.logical_and(*_depth_orders(fit, *state))
+        if not flip.any():
+            break
+        state, hist, converged = fit.minimise(*_flip(state, flip), st)
+    return state, hist, converged
+
+
+def depth_ratio(R, ab, C, B):
+    """The largest ratio of two points' depths in one frame of an answer of (*)."""
+    Z = (R @ np.einsum("fk,kcp->fcp", C, B))[:, 2] + 1.0
+    return float(np.max(Z.max(axis=1) / Z.min(axis=1)))
+
+
+def _best(fits):
+    """The fit of the lowest E among those within ``MAX_DEPTH_RATIO`` (all, if none is)."""
+    within = [f for f in fits if depth_ratio(*f[0]) <= MAX_DEPTH_RATIO] or fits
+    return min(within, key=lambda f: f[1]["cost"][-1])
+
+
+def _noise(fit, state, K):
+    """RMS image noise from the residual of the fit without prior (*), per degree of freedom:
+    the data term's share of W that the model cannot explain (0 on exact data)."""
+    F, P = fit.m.shape
+    n_obs = 2 * float(fit.m.sum())
+    n_par = F * (5 + K) + 3 * K * P - 3 * K - K * K - 3  # minus centring, C-B mixing, rotation
+    return float(np.sqrt(2 * fit.cost(*state)[1] / max(n_obs - n_par, 1.0)))
+
+
+def refine_perspective(
+    x,
+    K,
+    direct,
+    rank_one=None,
+    weights=None,
+    sigma_1=None,
+    *,
+    intrinsics,
+    observed=None,
+    settings=None,
+):
+    """Refine orthographic answers under the pinhole model (*) (module docstring).
+
+    The prior's balance comes from W: the fit without prior from the direct start gives the
+    noise level (its residual per degree of freedom), and mu is the bilinear shape stage's
+    rule of that noise (:class:`nrsfm.BilinearSettings`: ``mu_factor``, ``mu_noise``); on
+    exact data both are zero and the answer is exact.
+
+    Parameters
+    ----------
+    x : (F, 2, P) ndarray
+        Normalised image coordinates (:func:`normalise`); NaN where not seen.
+    K : int
+    direct : tuple (rotations (F, 3, 3), shapes (F, 3, P), centroids (F, 2))
+        The rank-K orthographic answer on ``x``: shapes in the units of x, centred.
+    rank_one : tuple or None
+        The same at K = 1 (the continuation's start); None: the direct start only.
+    weights : (K,) array_like or None
+        The prior's weights ``a_k`` (:func:`nrsfm.stages.shape.bilinear.bilinear_weights`);
+        None: no prior (the method ``pseudo_inverse``).
+    sigma_1 : float
+        The largest singular value of the orthographic ``X_init#`` (units of x), for mu.
+    intrinsics : (3, 3) array_like
+    observed : (F, P) bool ndarray, optional
+        Where a point was seen (default: where x is finite).
+    settings : PerspectiveSettings, optional
+
+    Returns
+    -------
+    PerspectiveResult
+    """
+    from .shape.bilinear import BilinearSettings
+
+    st = settings or PerspectiveSettings()
+    A = check_intrinsics(intrinsics)
+    F, _, P = x.shape
+    seen = np.isfinite(x).all(axis=1) if observed is None else np.asarray(observed, bool)
+    m = seen.astype(float)
+    xs = np.where(seen[:, None], x, 0.0)
+    R0, X0, c0 = (np.asarray(v, float) for v in direct)
+    free = _Fit(xs, m, np.zeros(K))
+    starts = _orders(free, _start(R0, X0, c0, K))
+    if not starts:
+        raise ValueError(
+            "the orthographic answer puts points behind the camera in either depth order: "
+            "check the intrinsics (the focal length in pixels, the principal point)"
+        )
+    fits = [_fit_orders(free, s0, st) for s0 in starts]
+    noise = _noise(free, _best(fits)[0], K)
+    bal = BilinearSettings()
+    mu = max(
+        bal.mu_factor * noise * (np.sqrt(F) + np.sqrt(3 * P)),
+        bal.mu_noise * noise**2 * (F + 2 * P) / max(float(sigma_1 or 0.0), 1e-300),
+    )
+    reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
+    fit = _Fit(xs, m, reg)
+    runs = {("direct", "direct 1")[i]: _fit_orders(fit, s0, st) for i, s0 in enumerate(starts)}
+    if rank_one is not None and K > 1:  # the rank-1 fit, K - 1 small columns added
+        one = _Fit(xs, m, np.zeros(1))
+        fits_1 = [_fit_orders(one, s1, st) for s1 in _orders(one, _start(*rank_one, 1))]
+        R1, ab1, C1, B1 = _best(fits_1)[0]
+        _, Bd = _factors(X0, K)  # the new columns: the rank-K answer's directions, small
+        Bn = (
+            _SMALL
+            * np.linalg.norm(B1)
+            * Bd[1:]
+            / np.linalg.norm(Bd[1:], axis=(1, 2))[:, None, None]
+        )
+        Cn = np.full((F, K - 1), _SMALL * np.linalg.norm(C1) / np.sqrt(F))
+        s0 = (R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn]))
+        runs["continuation"] = _fit_orders(fit, s0, st)
+    objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
+    best = next(k for k, v in runs.items() if v is _best(list(runs.values())))
+    (R, ab, C, B), hist, converged = runs[best]
+    S = np.einsum("fk,kcp->fcp", C, B)
+    t = np.column_stack([ab, np.ones(F)])
+    u = _pixels(xs, A)
+
+    def rms(proj):  # pixels, over the observed points
+        d = (_pixels(proj, A) - u) * m[:, None]
+        return float(np.sqrt(np.sum(d**2) / max(m.sum(), 1.0)))
+
+    Y = R @ S + t[:, :, None]
+    return PerspectiveResult(
+        rotations=R,
+        translations=t,
+        shapes=S,
+        intrinsics=A,
+        start=best,
+        objectives=objectives,
+        noise=noise,
+        mu=mu,
+        reg=reg,
+        history={k: np.asarray(v) for k, v in hist.items()},
+        n_iter=len(hist["cost"]) - 1,
+        converged=converged,
+        depth_ratio=depth_ratio(R, ab, C, B),
+        tol=st.tol,
+        reprojection_before=rms(R0[:, :2] @ X0 + c0[:, :, None]),
+        reprojection_after=rms(Y[:, :2] / Y[:, 2:3]),
+    )
