@@ -214,6 +214,13 @@ class Reconstruction:
                 f"extrapolation), {int(self.unreliable.sum())} of them unreliable "
                 f"(the fills made from their neighbours and the model disagree)"
             )
+        if self.perspective is not None:
+            p = self.perspective
+            lines.append(
+                f"  perspective refinement: {p.start} start, {p.n_iter} iterations, "
+                f"reprojection {p.reprojection_before:.3g} px (orthographic start) -> "
+                f"{p.reprojection_after:.3g} px; shapes in units of each frame's centroid depth"
+            )
         if self.diagnostics is not None:  # notes need no action; flags warned
             ids = [n.split(":", 1)[0] for n in self.diagnostics.notes]  # the text: .notes
             lines += [f"  notes (no action needed): {', '.join(ids)}"] if ids else []

@@ -139,6 +139,7 @@ def test_plan_covers_every_experiment():
         "n_ablation",
         "k_sweep",
         "shape",
+        "perspective",
     }
     tasks = unique_tasks(plan)
     assert len({t.key for t in tasks}) == len(tasks)
@@ -328,3 +329,14 @@ def test_benchmark_sequences_leave_out_tasks_without_one():
     )
     assert any("sequence" not in t.params for t in tasks)
     assert sequences_of(tasks) == list(dt.MOCAP_NAMES)
+
+
+def test_perspective_row_and_table():
+    from nrsfm.experiments.perspective import perspective_table, run_perspective
+
+    row = dict(kind="synthetic", distance=3, F=30, K=1, motion="smooth", noise=0.0)
+    (r,) = run_perspective(row)
+    assert r["e3d"] < 1e-8 < 0.02 < r["e3d_orthographic"] and r["perspective_warned"] == ""
+    assert r["units_move"] < 1e-6 and r["perturbation_move"] < 1e-5
+    columns, lines, note = perspective_table([r])
+    assert len(lines) == 1 and len(lines[0]) == len(columns) and "noise-free" in note

@@ -37,6 +37,7 @@ def test_exact_perspective_data_are_reconstructed_exactly(K, motion):
     np.testing.assert_allclose(p.translations[:, 2], 1.0)
     assert p.history["cost"].shape == (p.n_iter + 1,) and np.all(np.diff(p.history["cost"]) < 0)
     assert set(res.timings) >= {"factorize", "rotations", "shape", "perspective"}
+    assert "perspective refinement: " in res.summary()
 
 
 def test_camera_points_project_to_the_tracks():

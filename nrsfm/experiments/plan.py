@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .perspective import find_real, perspective_rows
 from .shape import COLUMNS as SHAPE_COLUMNS
 from .shape import find_external, shape_rows
 from .tasks import AKHTER_ROTATIONS, Task, load_sequence
@@ -22,6 +23,8 @@ EXPERIMENTS = {
     "k_sweep": "e3d as a function of K per sequence",
     "shape": "the shape stage alone on ground-truth rotations, per formulation: clean and "
     "noisy MoCap, rank-deficient and exactly rank-K shapes, back with a moving camera",
+    "perspective": "the orthographic pipeline and the perspective refinement on pinhole-camera "
+    "data: synthetic at 2-50 object radii, noise-free and noisy; the real sets' image tracks",
 }
 
 _FULL = dict(
@@ -177,6 +180,9 @@ def build_plan(
     if "shape" in only:
         rows = shape_rows(quick, find_external(external), mocap=data is not None)
         plan["shape"] = [mk("shape", row=r, column=c) for r in rows for c in SHAPE_COLUMNS]
+    if "perspective" in only:
+        rows = perspective_rows(quick, find_real(external))
+        plan["perspective"] = [mk("perspective", row=r) for r in rows]
     return plan
 
 

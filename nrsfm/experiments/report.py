@@ -15,6 +15,8 @@ from ..published import published_value as pub
 from .missing_tracks import TITLE as TRACKS_TITLE
 from .missing_tracks import missing_track_table
 from .plan import paper_K
+from .perspective import TITLE as PERSPECTIVE_TITLE
+from .perspective import perspective_table
 from .shape import TITLE as SHAPE_TITLE
 from .shape import shape_table
 
@@ -344,6 +346,9 @@ def build_tables(plan, results, sequences):
         tables.append(_k_sweep(rows_of("k_sweep"), figures))
     if "shape" in plan:
         tables.append(Table("shape", SHAPE_TITLE, *shape_table(rows_of("shape"))))
+    if "perspective" in plan and rows_of("perspective"):
+        rows = rows_of("perspective")
+        tables.append(Table("perspective", PERSPECTIVE_TITLE, *perspective_table(rows)))
     return tables, figures
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .missing_tracks import track_row
+from .perspective import run_perspective
 from .shape import run_shape
 
 #: Sequences whose stored rotations are moving ground-truth cameras (e_R is defined).
@@ -208,6 +209,7 @@ RUNNERS = {
     "n_ablation": run_n_ablation,
     "k_sweep": run_k_sweep,
     "shape": run_shape,
+    "perspective": run_perspective,
 }
 
 

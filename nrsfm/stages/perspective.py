@@ -363,6 +363,10 @@ class _Fit:
             rho = (E - En) / pred if pred > 0 else 0.0
             lam, nu = max(lam * max(1 / 3, 1 - (2 * rho - 1) ** 3), 1e-12), 2.0
             R, ab, C, B = new
+            Cb, Bb = _balanced(C, B)
+            Eb, db_ = self.cost(R, ab, Cb, Bb)
+            if Eb <= En:  # (not at rounding level, where balancing may add to E)
+                C, B, En, dn = Cb, Bb, Eb, db_
             converged = E - En <= st.tol * E
             E = En
             for k, v in (("cost", E), ("data_term", dn), ("damping", lam)):
@@ -370,6 +374,19 @@ class _Fit:
             if converged:
                 break
         return (R, ab, C, B), hist, converged
+
+
+def _balanced(C, B):
+    """The factors of X# = C B that minimise the prior of (*) for that X#: X# = U s V',
+    C = U s^(1/2), B = s^(1/2) V', the largest singular value first (non-decreasing weights:
+    the weighted nuclear norm is the factored prior's minimum; Iglesias et al. 2020). The
+    data term does not change; the factored prior's slow valley of equivalent factors goes."""
+    K = C.shape[1]
+    Qc, Rc = np.linalg.qr(C)
+    Qb, Rb = np.linalg.qr(B.reshape(K, -1).T)
+    U, s, Vt = np.linalg.svd(Rc @ Rb.T)
+    r = np.sqrt(s)
+    return (Qc @ U) * r, (r[:, None] * (Vt @ Qb.T)).reshape(B.shape)
 
 
 def _factors(shapes, K):
@@ -503,7 +520,9 @@ def refine_perspective(
             "check the intrinsics (the focal length in pixels, the principal point)"
         )
     fits = [_fit_orders(free, s0, st) for s0 in starts]
-    noise = _noise(free, _best(fits)[0], K)
+    best_free = _best(fits)
+    start = starts[next(i for i, f in enumerate(fits) if f is best_free)]  # its depth orders
+    noise = _noise(free, best_free[0], K)
     bal = BilinearSettings()
     mu = max(
         bal.mu_factor * noise * (np.sqrt(F) + np.sqrt(3 * P)),
@@ -511,7 +530,7 @@ def refine_perspective(
     )
     reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
     fit = _Fit(xs, m, reg)
-    runs = {("direct", "direct 1")[i]: _fit_orders(fit, s0, st) for i, s0 in enumerate(starts)}
+    runs = {"direct": _fit_orders(fit, start, st)}
     if rank_one is not None and K > 1:  # the rank-1 fit, K - 1 small columns added
         one = _Fit(xs, m, np.zeros(1))
         fits_1 = [_fit_orders(one, s1, st) for s1 in _orders(one, _start(*rank_one, 1))]
