@@ -351,17 +351,7 @@ def _views(node):
         yield from _views(child)
 
 
-@pytest.mark.parametrize("stages", [True, False])
-def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result, stages):
-    """Each view of the default blueprint shows entities logged static or on ``frame``."""
-    from nrsfm.views import make_blueprint
-
-    result = _stand_in_stages(pinv_result, seq) if stages else pinv_result
-    data = read_rrd(save_recording(result, tmp_path / "bp.rrd", seq))
-    bp = make_blueprint(recording_content(result, seq))
-    assert bp.time_panel is not None
-    views = list(_views(bp.root_container))
-    assert len(views) >= (15 if stages else 7), [v.name for v in views]
+def _check_views_on_frame(data, views):
     for v in views:
         origin = str(v.origin)
         contents = v.contents if isinstance(v.contents, list) else [origin]
@@ -374,6 +364,20 @@ def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result,
             if data[p]["static"] or any("frame" in b.schema.names for b in data[p]["temporal"])
         ]
         assert visible, f"view {v.name!r} shows nothing on the frame timeline"
+
+
+@pytest.mark.parametrize("stages", [True, False])
+def test_every_view_has_data_on_the_opening_timeline(tmp_path, seq, pinv_result, stages):
+    """Each view of the default blueprint shows entities logged static or on ``frame``."""
+    from nrsfm.views import make_blueprint
+
+    result = _stand_in_stages(pinv_result, seq) if stages else pinv_result
+    data = read_rrd(save_recording(result, tmp_path / "bp.rrd", seq))
+    bp = make_blueprint(recording_content(result, seq))
+    assert bp.time_panel is not None
+    views = list(_views(bp.root_container))
+    assert len(views) >= (15 if stages else 7), [v.name for v in views]
+    _check_views_on_frame(data, views)
 
 
 def _n_threads():
@@ -490,3 +494,106 @@ def test_the_same_run_writes_the_same_recording_id(tmp_path):
         (entry,) = RrdReader(path).recordings()
         ids.append(entry.recording_id)
     assert ids[0] == ids[1] != ids[2]
+
+
+@pytest.fixture(scope="module")
+def perspective_run():
+    """Exact pinhole data (3 object radii away) and its perspective reconstruction."""
+    cam = data_tools.PerspectiveCamera(distance=3.0)
+    s = data_tools.make_synthetic(F=12, P=12, K=1, motion="smooth", seed=2, camera=cam)
+    return s, nrsfm.reconstruct(s.W, 1, intrinsics=s.extra["intrinsics"])
+
+
+def test_perspective_recording(tmp_path, perspective_run):
+    """A perspective result: cameras at their centres -R_f' t_f with the intrinsics' frustum,
+    shapes as returned, the image in pixels (tracks, orthographic start, perspective), the
+    per-frame reprojection RMS and the refinement's history on its own timeline."""
+    from nrsfm.views import ENTITY_PATHS, PERSPECTIVE_ENTITY_PATHS, make_blueprint
+
+    s, res = perspective_run
+    p, F = res.perspective, s.n_frames
+    data = read_rrd(save_recording(res, tmp_path / "persp.rrd", s))
+    tops = {"/" + q.strip("/").split("/")[0] for q in data if not q.startswith("/__")}
+    assert tops == set(ENTITY_PATHS + PERSPECTIVE_ENTITY_PATHS)
+    for q in ("/image/measured", "/image/orthographic", "/image/perspective"):
+        assert sum(b.num_rows for b in data[q]["temporal"]) == F, q
+    for q in ("/world/cameras/ground_truth", "/image/reprojected", "/world/trajectory/gt"):
+        assert q not in data
+    assert data["/world/trajectory/estimate"]["static"]
+    # the cameras: centres -R_f' t_f, rotations R_f' (camera -> world), the real intrinsics
+    cams = data["/world/cameras/estimate"]
+    centres, frames = column(cams["temporal"], "Transform3D:translation", "frame")
+    assert np.array_equal(frames, np.arange(F))
+    expect = -np.einsum("fji,fj->fi", res.rotations, p.translations)
+    np.testing.assert_allclose(np.asarray(centres).reshape(F, 3), expect, atol=1e-6)
+    K_cam = column(cams["static"], "Pinhole:image_from_camera")[0][0]
+    np.testing.assert_allclose(np.reshape(K_cam, (3, 3)).T, s.extra["intrinsics"], rtol=1e-6)
+    size = column(cams["static"], "Pinhole:resolution")[0][0]
+    np.testing.assert_allclose(size, 2 * s.extra["intrinsics"][:2, 2])
+    # the shapes as returned (no per-frame alignment), the truth aligned onto them
+    est = column(data["/world/shapes/estimate"]["temporal"], "Points3D:positions", "frame")[0]
+    np.testing.assert_allclose(np.asarray(est), res.shapes.transpose(0, 2, 1), atol=1e-6)
+    gt = column(data["/world/shapes/ground_truth"]["temporal"], "Points3D:positions", "frame")
+    np.testing.assert_allclose(np.asarray(gt[0]), np.asarray(est), atol=1e-6)  # exact data
+    # the refinement's history: its own timeline, exact; log10 bars (static)
+    for key in ("cost", "data_term"):
+        vals, it = column(
+            data[f"/perspective_history/{key}"]["temporal"],
+            "Scalars:scalars",
+            "perspective_iteration",
+        )
+        assert np.array_equal(it, np.arange(p.n_iter + 1))
+        assert np.array_equal(np.ravel(vals), p.history[key])
+        bars = data[f"/perspective_history_bars/{key}"]
+        assert bars["static"] and not bars["temporal"]
+        vals = np.asarray(column(bars["static"], "BarChart:values")[0][0]["buffer"])
+        np.testing.assert_allclose(vals, np.log10(p.history[key]), rtol=1e-6)
+    # the layout: every view has data on the opening timeline
+    bp = make_blueprint(recording_content(res, s))
+    views = list(_views(bp.root_container))
+    assert {str(v.origin) for v in views} >= {"/world", "/image", "/reprojection"}
+    _check_views_on_frame(data, views)
+    text = column(data["/run/report"]["static"], "TextDocument:text")[0][0]
+    assert "## Perspective refinement" in text and "(px)" in text
+
+
+def test_perspective_reprojection_is_the_tracks_on_exact_data(tmp_path, perspective_run):
+    """On exact pinhole data /image/perspective is /image/measured (the tracks W, pixels);
+    the orthographic start's projection is pixels off; the per-frame RMS says so."""
+    s, res = perspective_run
+    F, P = s.n_frames, s.n_points
+    data = read_rrd(save_recording(res, tmp_path / "exact.rrd", s))
+    image = {}
+    for name in ("measured", "orthographic", "perspective"):
+        pts, frames = column(data[f"/image/{name}"]["temporal"], "Points2D:positions", "frame")
+        assert np.array_equal(frames, np.arange(F))
+        image[name] = np.asarray(pts).reshape(F, P, 2)
+    tracks = s.W.reshape(F, 2, P).transpose(0, 2, 1)
+    np.testing.assert_allclose(image["measured"], tracks, atol=1e-4)  # float32 pixels
+    np.testing.assert_allclose(image["perspective"], tracks, atol=1e-4)
+    assert np.abs(image["orthographic"] - tracks).max() > 1.0
+    rms = {}
+    for name in ("orthographic", "perspective"):
+        v, _ = column(data[f"/reprojection/{name}"]["temporal"], "Scalars:scalars", "frame")
+        rms[name] = np.ravel(v)
+    assert rms["perspective"].max() < 1e-6 and rms["orthographic"].min() > 0.1
+    total = np.sqrt(np.mean(rms["orthographic"] ** 2))  # every point seen in every frame
+    np.testing.assert_allclose(total, res.perspective.reprojection_before, rtol=1e-9)
+
+
+def test_perspective_frusta_take_the_image_size_where_known(tmp_path, perspective_run):
+    """The frustum's image is the input's size where known (``image_size`` (H, W), as
+    ``nrsfm track`` writes it; ``nrsfm run`` passes it on), else twice the principal point."""
+    from nrsfm.cli import main
+
+    s, res = perspective_run
+    assert recording_content(res, s).image_size == (640.0, 480.0)  # principal (320, 240)
+    assert recording_content(res, s, image_size=(500, 700)).image_size == (700.0, 500.0)
+    sized = dataclasses.replace(s, extra=dict(s.extra, image_size=(400, 600)))
+    assert recording_content(res, sized).image_size == (600.0, 400.0)
+    inp, rrd = tmp_path / "t.npz", tmp_path / "t.rrd"
+    np.savez(inp, W=s.W, K=1, image_size=np.array([500, 700]), tracks=np.zeros(1))
+    args = ["run", inp, "-o", tmp_path / "o.npz", "--rrd", rrd, "--quiet", "--focal", "800"]
+    assert main(list(map(str, args + ["--principal", "320", "240"]))) == 0
+    cams = read_rrd(rrd)["/world/cameras/estimate"]["static"]
+    np.testing.assert_allclose(column(cams, "Pinhole:resolution")[0][0], [700, 500])

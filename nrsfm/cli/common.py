@@ -187,11 +187,15 @@ def write_recording(path, write):
         raise OSError(f"cannot write the recording {path}: {one_line(exc)}") from exc
 
 
-def save_rrd(result, path, seq=None):
-    """Write the recording of ``result`` (with ground truth ``seq``) to ``path``."""
+def save_rrd(result, path, seq=None, image_size=None):
+    """Write the recording of ``result`` (with ground truth ``seq``; ``image_size`` (H, W)
+    of a perspective run's images, where the input has it) to ``path``."""
     from ..views.recording import save_recording
 
-    write_recording(path, lambda tmp: save_recording(result, tmp, sequence=seq))
+    def write(tmp):
+        return save_recording(result, tmp, sequence=seq, image_size=image_size)
+
+    write_recording(path, write)
     print(f"  wrote Rerun recording {path} (open it with: rerun {path})")
 
 

@@ -152,7 +152,7 @@ def cmd_run(args):
         raise OSError(f"cannot write the output {out}: {one_line(exc)}") from exc
     print(f"  wrote {out}")
     if rrd is not None:
-        save_rrd(result, rrd, seq)
+        save_rrd(result, rrd, seq, image_size)
     return 0
 
 

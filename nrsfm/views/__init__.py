@@ -4,8 +4,14 @@ the Rerun recordings of a reconstruction (:mod:`.recording`) and of a video run
 matplotlib figures (:mod:`.figures`), notebook outputs and viewer (:mod:`.notebook`). rerun
 and matplotlib are imported only when a function needs them."""
 
-from .blueprint import make_blueprint, make_video_blueprint
+from .blueprint import make_blueprint, make_perspective_blueprint, make_video_blueprint
 from .content import RecordingContent, recording_content
 from .notebook import output_path, show_recording, shown_path
-from .recording import ENTITY_PATHS, build_recording, log_content, save_recording
+from .recording import (
+    ENTITY_PATHS,
+    PERSPECTIVE_ENTITY_PATHS,
+    build_recording,
+    log_content,
+    save_recording,
+)
 from .video import VIDEO_ENTITY_PATHS, save_video_recording

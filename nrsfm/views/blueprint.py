@@ -98,14 +98,72 @@ def _right_column(rrb, content):
     return rrb.Vertical(*right, row_shares=[3, 2, 2] if len(right) == 3 else [1] * len(right))
 
 
+def _perspective_eye(content):
+    """(position, target, up) of the 3D view's eye for a perspective result: beside and
+    above the middle of the cameras' centres and the object, far enough to hold them all."""
+    centres = content.camera_centres
+    mean = centres.mean(axis=0)
+    ahead = mean / max(float(np.linalg.norm(mean)), 1e-12)  # from the object to the cameras
+    up = -content.cameras_est[:, 1].mean(axis=0)  # image y points down
+    up = up - (up @ ahead) * ahead
+    up = up / max(float(np.linalg.norm(up)), 1e-12)
+    side = np.cross(up, ahead)
+    target = 0.5 * mean
+    reach = max(float(np.max(np.linalg.norm(centres - target, axis=1))), 1e-12)
+    position = target + 2.0 * reach * (0.8 * side + 0.45 * up + 0.4 * ahead)
+    return position, target, up
+
+
+def make_perspective_blueprint(content=None):
+    """The layout of a perspective result: the 3D world with the cameras (their frusta and
+    trajectory) and the shapes, largest, left; right the image in pixels (tracks, the
+    orthographic start's and the perspective projection), the two per-frame reprojection
+    RMS curves, and the refinement's cost history (static bars, log10) beside the report.
+    Every view has data on the opening timeline ``frame``."""
+    import rerun.blueprint as rrb
+
+    kw = {}
+    if content is not None:
+        pos, target, up = _perspective_eye(content)
+        kw["eye_controls"] = rrb.EyeControls3D(position=pos, look_target=target, eye_up=up)
+    gt = content is None or content.shapes_gt is not None
+    name = "cameras (frusta, trajectory) and shapes" + " (orange estimate, blue truth)" * gt
+    world = rrb.Spatial3DView(origin="/world", name=name, **kw)
+    image = "image (px): tracks (blue), orthographic start (green), perspective (orange)"
+    no_legend = rrb.PlotLegend(visible=False)
+    rms = rrb.TimeSeriesView(origin="/reprojection", name="reprojection RMS per frame (px)")
+    bars = [
+        rrb.BarChartView(origin=f"/perspective_history_bars/{n}", name=t, plot_legend=no_legend)
+        for n, t in (("cost", "log10 cost E per iteration"), ("data_term", "log10 data term"))
+    ]
+    report = rrb.TextDocumentView(origin="/run/report", name="report")
+    right = rrb.Vertical(
+        rrb.Spatial2DView(origin="/image", name=image),
+        rms,
+        rrb.Tabs(*bars, report, name="perspective refinement"),
+        row_shares=[5, 3, 3],
+    )
+    return rrb.Blueprint(
+        rrb.Horizontal(world, right, column_shares=[3, 2]),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="frame"),
+        auto_views=False,
+        collapse_panels=False,
+    )
+
+
 def make_blueprint(content=None):
     """The default layout, in which every view has data on the opening timeline ``frame``:
     left the 3D world, the rotation samples and the image; right the shape-stage history
     (static bar charts), per-frame errors and rotation-sample series in tabs, the spectra and
     the report. Views of parts the :class:`.content.RecordingContent` lacks are left out
-    (``content`` None: every view)."""
+    (``content`` None: every view). A perspective result's content gets
+    :func:`make_perspective_blueprint`."""
     import rerun.blueprint as rrb
 
+    if content is not None and content.perspective:
+        return make_perspective_blueprint(content)
     return rrb.Blueprint(
         rrb.Horizontal(
             _left_column(rrb, content), _right_column(rrb, content), column_shares=[3, 2]

@@ -7,6 +7,13 @@ each estimated shape by a per-frame similarity Procrustes onto the ground truth 
 frame (as ``e3d``), the cameras and rotation samples by one global orthogonal ``Q``
 minimising ``sum_f ||R_gt,f[:2] - R_est,f[:2] Q||_F^2`` (as ``e_R``), completed with
 ``r3 = r1 x r2``. Without ground truth the estimate is drawn as returned.
+
+A perspective result (``result.perspective``, :mod:`nrsfm.stages.perspective`) is drawn in
+its own world frame instead, so that the cameras' translations show: the shapes as returned
+(in units of each frame's centroid depth), each camera at its centre ``-R_f' t_f`` with the
+intrinsics' frustum, and the ground truth similarity-aligned per frame onto the estimate (as
+``e3d`` aligns them); the image in pixels: the tracks, the orthographic start's projection
+and the perspective projection, with their per-frame RMS distances to the tracks.
 """
 
 from __future__ import annotations
@@ -17,6 +24,9 @@ import numpy as np
 
 #: Shape-stage history quantities drawn, in this order (ADMM | bilinear solver).
 HISTORY_KEYS = ("cost", "data_term", "residual", "rho", "grad_norm")
+#: Perspective-refinement history quantities drawn (:class:`~nrsfm.stages.perspective.
+#: PerspectiveResult` ``history``).
+PERSPECTIVE_HISTORY_KEYS = ("cost", "data_term")
 
 
 @dataclass
@@ -34,6 +44,7 @@ class RecordingContent:
     cameras_gt: np.ndarray | None = None
     camera_distance: float = 1.0
     axis_length: float = 0.3
+    point_scale: float | None = None  # points' radius in POINT_RADIUS units (camera_distance)
     tracks: np.ndarray | None = None  # (F, P, 2) measured (centred) W
     filled: np.ndarray | None = None  # (F, P) bool: not observed, the 3D is a fill
     fill_gain: np.ndarray | None = None  # (P,) the fill's noise gain
@@ -52,6 +63,19 @@ class RecordingContent:
     singular_values: dict = field(default_factory=dict)  # name -> 1-D array
     report: str = ""
     aligned: bool = False
+    # a perspective result (None otherwise): the image in pixels, the cameras' centres
+    camera_centres: np.ndarray | None = None  # (F, 3) -R_f' t_f in the world frame
+    intrinsics: np.ndarray | None = None  # (3, 3) camera matrix (pixels)
+    image_size: tuple | None = None  # (width, height) pixels
+    orthographic_image: np.ndarray | None = None  # (F, P, 2) the start's projection, pixels
+    perspective_image: np.ndarray | None = None  # (F, P, 2) pi(R_f S_f + t_f), pixels
+    reprojection_per_frame: dict = field(default_factory=dict)  # name -> (F,) RMS, pixels
+    perspective_history: dict = field(default_factory=dict)  # name -> (n_iter + 1,)
+
+    @property
+    def perspective(self):
+        """Whether this is the content of a perspective result."""
+        return self.perspective_image is not None
 
 
 def complete_rotations(R2):
@@ -113,6 +137,61 @@ def _world_content(result, sequence):
     return c, Q, R_gt
 
 
+def _pixels(x, A):
+    """(F, 2, P) normalised image coordinates -> pixels (F, P, 2), by the camera matrix."""
+    return (A[:2, :2] @ x + A[:2, 2:]).transpose(0, 2, 1).copy()
+
+
+def _rms_per_frame(d, mask):
+    """(F,) RMS length of the (F, P, 2) image differences ``d`` over the points in ``mask``."""
+    n = np.maximum(mask.sum(axis=1), 1)
+    return np.sqrt(np.sum(np.where(mask[..., None], d, 0.0) ** 2, axis=(1, 2)) / n)
+
+
+def _perspective_content(c, result, sequence, image_size=None):
+    """Redraw the world and the image of ``c`` for a perspective result (module docstring):
+    shapes and cameras in the refinement's world frame, the image in pixels."""
+    from ..geometry import align_similarity
+
+    p, F, P = result.perspective, result.n_frames, result.n_points
+    A = np.asarray(p.intrinsics, float)
+    X_est, R_est = np.asarray(result.shapes, float), np.asarray(result.rotations, float)
+    c.shapes_est = X_est.transpose(0, 2, 1).copy()
+    X_gt = _gt_world(sequence)
+    if X_gt is not None:
+        c.shapes_gt = align_similarity(X_gt, X_est).transpose(0, 2, 1).copy()
+    c.cameras_est, c.cameras_gt = complete_rotations(R_est), None
+    c.camera_centres = -np.einsum("fji,fj->fi", R_est, np.asarray(p.translations, float))
+    extent = float(np.max(np.linalg.norm(X_est, axis=1))) if X_est.size else 1.0
+    extent = extent if extent > 0 else 1.0
+    c.camera_distance = float(np.mean(np.linalg.norm(c.camera_centres, axis=1)))
+    c.axis_length = 0.12 * c.camera_distance  # the frusta reach 3 times as far
+    c.point_scale = 3.0 * extent  # the points twice the size they have in an orthographic view
+    if image_size is None and sequence is not None:
+        image_size = sequence.extra.get("image_size")
+    height, width = (2.0 * A[1, 2], 2.0 * A[0, 2]) if image_size is None else image_size[:2]
+    c.intrinsics, c.image_size = A, (float(width), float(height))
+    # the tracks, the orthographic start (its rotations and shapes, the image centroids)
+    # and the perspective projection, all in pixels
+    centroids = np.asarray(result.row_means, float).reshape(F, 2, 1)
+    x = np.asarray(result.W, float).reshape(F, 2, P) + centroids
+    R0 = np.asarray(result.rotation_stage.rotations, float)
+    X0 = np.asarray(result.shape_stage.shapes, float) * result.scale
+    Y = p.camera_points
+    c.tracks = _pixels(x, A)
+    c.orthographic_image = _pixels(R0[:, :2] @ X0 + centroids, A)
+    c.perspective_image = _pixels(Y[:, :2] / Y[:, 2:3], A)
+    c.reprojected = None
+    seen = np.ones((F, P), bool) if result.observed is None else np.asarray(result.observed)
+    for name in ("orthographic", "perspective"):
+        d = getattr(c, f"{name}_image") - c.tracks
+        c.reprojection_per_frame[name] = _rms_per_frame(d, seen)
+    for key in PERSPECTIVE_HISTORY_KEYS:
+        v = np.asarray(p.history.get(key, []), float).ravel()
+        if v.size:
+            c.perspective_history[key] = v
+
+
 def _add_errors(c, result, sequence, R_gt):
     from ..metrics import e3d, rotation_error
 
@@ -171,13 +250,17 @@ def _add_shape_stage(c, result):
         c.singular_values["theta"] = np.asarray(ss.theta, float).ravel()
 
 
-def recording_content(result, sequence=None):
+def recording_content(result, sequence=None, *, image_size=None):
     """The :class:`RecordingContent` of the :class:`nrsfm.Reconstruction` ``result`` (the
     parts of a stage that did not run left out), with the ground truth of ``sequence``
-    (shapes, rotations, skeleton edges; as many frames) if given."""
+    (shapes, rotations, skeleton edges; as many frames) if given. ``image_size`` (height,
+    width in pixels, as ``nrsfm track`` writes it; else ``sequence.extra["image_size"]``)
+    sizes a perspective result's frusta; without it, twice the principal point."""
     if sequence is not None and sequence.n_frames != result.n_frames:
         raise ValueError(f"sequence has {sequence.n_frames} frames, result has {result.n_frames}")
     c, Q, R_gt = _world_content(result, sequence)
+    if getattr(result, "perspective", None) is not None:
+        _perspective_content(c, result, sequence, image_size)
     _add_errors(c, result, sequence, R_gt)
     _add_rotation_stage(c, result, Q, R_gt)
     _add_shape_stage(c, result)
@@ -219,6 +302,8 @@ def _report(result, sequence, c):
     )
     if getattr(result, "diagnostics", None) is not None:
         lines += ["", "## Diagnostics", "", "```", result.diagnostics.summary(), "```"]
+    if c.perspective:
+        return "\n".join(lines + _perspective_report(result.perspective, c))
     shapes = "Estimated shapes are similarity-aligned per frame onto the ground truth"
     shapes += " (as in e3d)."
     if not c.aligned:
@@ -230,3 +315,29 @@ def _report(result, sequence, c):
     lines += ["", "## Display", "", shapes, cameras]
     lines.append("Singular values are in the solver's units (input / scale).")
     return "\n".join(lines)
+
+
+def _perspective_report(p, c):
+    """The report's lines on the perspective refinement and how it is drawn."""
+    rows = [
+        f"| start chosen | {p.start} |",
+        *[f"| objective E, {k} start | {v:.6g} |" for k, v in p.objectives.items()],
+        f"| iterations | {p.n_iter} |",
+        f"| converged | {p.converged} |",
+        f"| noise (normalised units) | {p.noise:.3g} |",
+        f"| prior balance mu | {p.mu:.3g} |",
+        f"| largest depth ratio in a frame | {p.depth_ratio:.3g} |",
+        f"| reprojection RMS, orthographic start (px) | {p.reprojection_before:.4g} |",
+        f"| reprojection RMS, perspective (px) | {p.reprojection_after:.4g} |",
+    ]
+    lines = _table("Perspective refinement|quantity|value", rows)
+    f, cx, cy = c.intrinsics[0, 0], c.intrinsics[0, 2], c.intrinsics[1, 2]
+    shapes = "Shapes and cameras in the refinement's world frame, in units of each frame's"
+    shapes += " centroid depth: each camera at its centre -R_f' t_f (no alignment)."
+    if c.shapes_gt is not None:
+        shapes += " The ground truth is similarity-aligned per frame onto the estimate (as in e3d)."
+    image = f"Image in pixels (focal {f:.6g}, principal point ({cx:.6g}, {cy:.6g})): the tracks,"
+    image += " the orthographic start's projection and the perspective projection (their"
+    image += " RMS distances to the tracks per frame: /reprojection/...)."
+    notes = [shapes, image, "Singular values are the orthographic start's (solver's units)."]
+    return lines + ["", "## Display", ""] + notes

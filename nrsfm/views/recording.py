@@ -27,6 +27,19 @@ given are left out):
   [static]
 * ``/singular_values/{W,X_init,theta,log10_theta}``: BarChart [static]
 * ``/run/report``: TextDocument, markdown [static]
+
+A perspective result (``result.perspective``) is drawn in the refinement's world frame
+(:mod:`.content`): ``/world/shapes/estimate`` as returned, ``/world/shapes/ground_truth``
+aligned onto it, ``/world/cameras/estimate`` at the centres ``-R_f' t_f`` with the
+intrinsics' frustum (no ground-truth cameras), and in place of ``/image/reprojected``:
+
+* ``/image/measured``, ``/image/orthographic``, ``/image/perspective``: Points2D in pixels,
+  the tracks, the orthographic start's projection and the perspective one [frame]
+* ``/reprojection/{orthographic,perspective}``: their RMS distance to the tracks, pixels,
+  Scalars [frame]
+* ``/perspective_history/{cost,data_term}``: the refinement's history, Scalars
+  [perspective_iteration]; ``/perspective_history_bars/...``: the same, log10, as BarCharts
+  [static]
 """
 
 from __future__ import annotations
@@ -44,9 +57,12 @@ from .content import HISTORY_KEYS, recording_content
 #: Top-level entity paths written (sub-paths depend on the stages that ran).
 ENTITY_PATHS = ("/world", "/rotations", "/rotation_samples", "/errors", "/image")
 ENTITY_PATHS += ("/shape_history", "/shape_history_bars", "/singular_values", "/run")
+#: Top-level entity paths a perspective result writes besides those.
+PERSPECTIVE_ENTITY_PATHS = ("/reprojection", "/perspective_history", "/perspective_history_bars")
 
 ESTIMATE_COLOR = (255, 140, 0, 255)
 GT_COLOR = (70, 130, 255, 255)
+ORTHOGRAPHIC_COLOR = (40, 170, 90, 255)
 AXIS_COLORS = np.array([(230, 60, 60, 255), (60, 200, 60, 255), (70, 110, 255, 255)], np.uint8)
 DROPPED_COLOR = (140, 140, 140, 110)
 #: Point radius, in multiples of the camera distance; lines are 0.4 of it.
@@ -104,7 +120,44 @@ def _log_shapes(rec, rr, c, r_pt, r_ln):
         rl.send_skeleton(rec, rr, skeleton, c.shapes_gt, c.edges, fr, GT_COLOR, 0.6 * r_ln)
 
 
+def _log_perspective_cameras_and_image(rec, rr, c, r_ln):
+    """Cameras at their centres with the intrinsics' frusta; the image in pixels: the tracks
+    (large, blue), the orthographic start's projection (green), the perspective one (small,
+    orange)."""
+    args = (c.cameras_est, c.frames, c.camera_distance, c.axis_length, ESTIMATE_COLOR, 3.0)
+    pinhole = (c.intrinsics, c.image_size)
+    path = "/world/cameras/estimate"
+    centres = rl.send_camera(rec, rr, path, *args, centres=c.camera_centres, pinhole=pinhole)
+    strip = rr.LineStrips3D([centres], colors=[ESTIMATE_COLOR], radii=[r_ln])
+    rec.log("/world/trajectory/estimate", strip, static=True)
+    images = [("measured", c.tracks, GT_COLOR, -7.0, 1.0)]
+    images.append(("orthographic", c.orthographic_image, ORTHOGRAPHIC_COLOR, -5.0, 2.0))
+    images.append(("perspective", c.perspective_image, ESTIMATE_COLOR, -3.0, 3.0))
+    for name, pts, color, radius, order in images:
+        rl.send_points_2d(rec, rr, f"/image/{name}", pts, c.frames)
+        style = rr.Points2D.from_fields(colors=[color], radii=[radius], draw_order=order)
+        rec.log(f"/image/{name}", style, static=True)
+
+
+def _log_perspective_series(rec, rr, c):
+    """Per-frame reprojection RMS (pixels) and the refinement's history."""
+    names = dict(orthographic="orthographic start", perspective="perspective refinement")
+    colors = dict(orthographic=ORTHOGRAPHIC_COLOR[:3], perspective=ESTIMATE_COLOR[:3])
+    for name, v in c.reprojection_per_frame.items():
+        path = f"/reprojection/{name}"
+        rl.send_scalars(rec, rr, path, v, c.frames, name=names[name], color=[colors[name]])
+    for name, v in c.perspective_history.items():
+        it = np.arange(v.size)
+        rl.send_scalars(rec, rr, f"/perspective_history/{name}", v, it, "perspective_iteration")
+        color = ESTIMATE_COLOR if name == "cost" else (90, 90, 200, 255)
+        path = f"/perspective_history_bars/{name}"
+        rl.send_bars(rec, rr, path, rl.log10(v), abscissa=it, color=color)
+
+
 def _log_cameras_and_image(rec, rr, c, r_ln):
+    if c.perspective:
+        _log_perspective_cameras_and_image(rec, rr, c, r_ln)
+        return
     # the ground truth's frustum is the larger one: both show when they coincide
     cameras = [("estimate", c.cameras_est, ESTIMATE_COLOR, 1.0)]
     for name, R, color, frustum in cameras + [("ground_truth", c.cameras_gt, GT_COLOR, 1.5)]:
@@ -178,6 +231,8 @@ def _log_series(rec, rr, c):
     if "theta" in c.singular_values:
         theta = rl.log10(c.singular_values["theta"])
         rl.send_bars(rec, rr, "/singular_values/log10_theta", theta)
+    if c.perspective:
+        _log_perspective_series(rec, rr, c)
     report = rr.TextDocument(c.report, media_type=rr.MediaType.MARKDOWN)
     rec.log("/run/report", report, static=True)
 
@@ -186,7 +241,7 @@ def log_content(rec, content):
     """Send a :class:`~.content.RecordingContent` to the recording stream ``rec``."""
     import rerun as rr
 
-    r_pt = POINT_RADIUS * content.camera_distance
+    r_pt = POINT_RADIUS * (content.point_scale or content.camera_distance)
     _log_shapes(rec, rr, content, r_pt, LINE_RADIUS * r_pt)
     _log_cameras_and_image(rec, rr, content, LINE_RADIUS * r_pt)
     _log_rotations(rec, rr, content)
@@ -202,13 +257,20 @@ def recording_id_of(result):
 
 
 def build_recording(
-    result, sequence=None, *, application_id="nrsfm", recording_id=None, blueprint=None
+    result,
+    sequence=None,
+    *,
+    application_id="nrsfm",
+    recording_id=None,
+    blueprint=None,
+    image_size=None,
 ):
     """A ``rerun.RecordingStream`` holding the run of ``result`` (a :class:`nrsfm.
     Reconstruction`, with the ground truth ``sequence`` overlaid), its blueprint sent (the
     default layout, or ``blueprint``), buffered until a sink is attached
-    (``rec.save(path)``, ``rec.spawn()``); more can be logged to it before."""
-    content = recording_content(result, sequence)
+    (``rec.save(path)``, ``rec.spawn()``); more can be logged to it before. ``image_size``:
+    (height, width) of a perspective run's images (:func:`.content.recording_content`)."""
+    content = recording_content(result, sequence, image_size=image_size)
     rec = rl.new_stream(application_id, recording_id or recording_id_of(result))
     rl.send_blueprint(rec, make_blueprint(content) if blueprint is None else blueprint)
     log_content(rec, content)
@@ -224,14 +286,17 @@ def save_recording(
     recording_id=None,
     blueprint=None,
     extra=None,
+    image_size=None,
 ):
     """Write the recording of ``result`` (with the ground truth ``sequence``) to the ``.rrd``
     file ``path`` (parent folders created) and return its Path; the stream is closed and its
     threads released, so repeated calls do not accumulate threads.
 
     ``blueprint`` (a ``rerun.blueprint.Blueprint``) replaces the default layout; ``extra``,
-    a function of the open stream, logs more entities (a lesson's own series)."""
-    content = recording_content(result, sequence)
+    a function of the open stream, logs more entities (a lesson's own series);
+    ``image_size``: (height, width) of a perspective run's images (default: twice the
+    principal point, or ``sequence.extra["image_size"]``)."""
+    content = recording_content(result, sequence, image_size=image_size)
     rid = recording_id or recording_id_of(result)
     layout = make_blueprint(content) if blueprint is None else blueprint
     with rl.rrd_stream(path, layout, application_id, rid) as rec:

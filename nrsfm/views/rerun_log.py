@@ -57,15 +57,21 @@ def send_scalars(rec, rr, path, values, index, timeline="frame", name=None, colo
         rec.log(path, rr.SeriesLines(names=name, colors=color), static=True)
 
 
-def send_camera(rec, rr, path, R, frames, distance, axis_length, color, frustum=1.0):
-    """Camera f as a transform camera -> world (rotation R_f', centre -distance r3_f), drawn
-    as RGB axes (x, y, viewing direction z) and a frustum in ``color``; returns the (F, 3)
-    camera centres."""
-    centres = -distance * R[:, 2, :]
+def send_camera(
+    rec, rr, path, R, frames, distance, axis_length, color, frustum=1.0, centres=None, pinhole=None
+):
+    """Camera f as a transform camera -> world (rotation R_f', centre -distance r3_f or the
+    given (F, 3) ``centres``), drawn as RGB axes (x, y, viewing direction z) and a frustum in
+    ``color`` (of ``pinhole`` = (camera matrix, (width, height)) if given, else a generic
+    one); returns the (F, 3) camera centres."""
+    centres = -distance * R[:, 2, :] if centres is None else np.asarray(centres, float)
     columns = rr.Transform3D.columns(mat3x3=R.transpose(0, 2, 1), translation=centres)
     rec.send_columns(path, indexes=_index(rr, frames), columns=columns)
     rec.log(path, rr.TransformAxes3D(axis_length), static=True)
-    kw = dict(fov_y=0.7, aspect_ratio=1.3, camera_xyz=rr.ViewCoordinates.RDF, color=color)
+    kw = dict(fov_y=0.7, aspect_ratio=1.3) if pinhole is None else {}
+    if pinhole is not None:
+        kw.update(image_from_camera=pinhole[0], resolution=pinhole[1])
+    kw.update(camera_xyz=rr.ViewCoordinates.RDF, color=color)
     kw.update(image_plane_distance=frustum * axis_length, line_width=0.006 * distance)
     rec.log(path, rr.Pinhole(**kw), static=True)
     return centres
