@@ -122,7 +122,7 @@ def make_perspective_blueprint(content=None):
     Every view has data on the opening timeline ``frame``."""
     import rerun.blueprint as rrb
 
-    kw = {}
+    kw, no_legend = {}, rrb.PlotLegend(visible=False)
     if content is not None:
         pos, target, up = _perspective_eye(content)
         kw["eye_controls"] = rrb.EyeControls3D(position=pos, look_target=target, eye_up=up)
@@ -130,8 +130,8 @@ def make_perspective_blueprint(content=None):
     name = "cameras (frusta, trajectory) and shapes" + " (orange estimate, blue truth)" * gt
     world = rrb.Spatial3DView(origin="/world", name=name, **kw)
     image = "image (px): tracks (blue), orthographic start (green), perspective (orange)"
-    no_legend = rrb.PlotLegend(visible=False)
-    rms = rrb.TimeSeriesView(origin="/reprojection", name="reprojection RMS per frame (px)")
+    name = "reprojection RMS (px): orthographic (green), perspective (orange)"
+    rms = rrb.TimeSeriesView(origin="/reprojection", name=name, plot_legend=no_legend)
     bars = [
         rrb.BarChartView(origin=f"/perspective_history_bars/{n}", name=t, plot_legend=no_legend)
         for n, t in (("cost", "log10 cost E per iteration"), ("data_term", "log10 data term"))
