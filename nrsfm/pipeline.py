@@ -371,6 +371,7 @@ def reconstruct(
                 intrinsics=camera,
                 observed=res.observed,
                 settings=settings.perspective,
+                progress=say,
             )
         say(
             f"perspective refinement ({persp.start} start, {persp.n_iter} iterations): "

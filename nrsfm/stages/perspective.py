@@ -52,6 +52,8 @@ __all__ = [
 
 _RZ = np.diag([-1.0, -1.0, 1.0])  # Rz(pi): the orthographic image's depth reversal
 _SMALL = 1e-3  # the continuation's new columns, relative to the first column's size
+#: entries of the per-frame blocks N_f' N_f held at once while the Schur complement is built
+SCHUR_CHUNK = 4_000_000
 #: rounds of depth orders re-chosen at the answer and the fit repeated, at most
 MAX_FLIP_ROUNDS = 3
 #: the largest ratio of two points' depths in one frame for an answer to count as a camera
@@ -256,7 +258,9 @@ class _Fit:
         return data + prior, data
 
     def normal_equations(self, R, ab, C, B):
-        """Gradient and Gauss-Newton blocks of (*): frames (F, nf), points (P, 3K), cross."""
+        """Gradient and Gauss-Newton blocks of (*): frames (F, nf), points (P, 3K), and the
+        cross blocks in their Kronecker form: the basis entry (k, c) of point p enters
+        frame f as C_fk times column c of ``M`` (F, P, nf, 3)."""
         Y, S, r = self.residual(R, ab, C, B)
         F, K, P = C.shape[0], C.shape[1], B.shape[2]
         Z = Y[:, 2]
@@ -266,35 +270,36 @@ class _Fit:
         RS = np.swapaxes(R @ S, 1, 2)  # (F, P, 3)
         Jw = -J @ _skew(RS)  # rotation increment: d(R S) = w x (R S)
         RB = np.moveaxis(R[:, None] @ B[None], (1, 3), (3, 1))  # (F, P, 3, K): R_f B_k
-        Jc = J @ RB
-        JR = J @ R[:, None]  # (F, P, 2, 3)
-        Jb = (JR[:, :, :, None, :] * C[:, None, None, :, None]).reshape(F, P, 2, 3 * K)
-        Jf = np.concatenate([Jw, J[..., :2], Jc], axis=3)
+        JR = J @ R[:, None]  # (F, P, 2, 3): d pi / d B_k[:, p], per unit of C_fk
+        Jf = np.concatenate([Jw, J[..., :2], J @ RB], axis=3)
         rr = np.swapaxes(r, 1, 2)[..., None]  # (F, P, 2, 1)
-        nf, nb = Jf.shape[3], 3 * K
-        Jf2, Jb2 = Jf.reshape(F, 2 * P, nf), Jb.transpose(1, 0, 2, 3).reshape(P, 2 * F, nb)
+        nf, CC = Jf.shape[3], _pairs(C)
+        Jf2 = Jf.reshape(F, 2 * P, nf)
         A = np.swapaxes(Jf2, 1, 2) @ Jf2
-        Bp = np.swapaxes(Jb2, 1, 2) @ Jb2
-        Wc = np.swapaxes(Jf, 2, 3) @ Jb  # (F, P, nf, nb)
+        M = np.swapaxes(Jf, 2, 3) @ JR
         gf = (np.swapaxes(Jf, 2, 3) @ rr).sum(1)[..., 0]
-        gb = (np.swapaxes(Jb, 2, 3) @ rr).sum(0)[..., 0]
+        QR = (np.swapaxes(JR, 2, 3) @ JR).reshape(F, 9 * P)
+        Bp = (CC.T @ QR).reshape(K, K, P, 3, 3).transpose(2, 0, 3, 1, 4).reshape(P, 3 * K, -1)
+        v = (np.swapaxes(JR, 2, 3) @ rr)[..., 0].reshape(F, 3 * P)
+        gb = (C.T @ v).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, 3 * K)
         A[:, 5:, 5:] += np.diag(self.reg)  # the prior (*), on C and B
         gf[:, 5:] += self.reg * C
         rb = np.repeat(self.reg, 3)
         Bp += np.diag(rb)
         gb += B.transpose(2, 0, 1).reshape(P, 3 * K) * rb
-        return A, Bp, Wc, gf, gb
+        return A, Bp, M, C, gf, gb
 
     def step(self, blocks, lam):
         """The damped step (Marquardt's scaling): the larger of the frames' and the points'
         block sets is eliminated; the basis keeps sum_p dB_p = 0 (a multiplier)."""
-        A, Bp, Wc, gf, gb = blocks
+        A, Bp, M, C, gf, gb = blocks
         (F, nf), (P, nb) = gf.shape, gb.shape
         Ad = A + lam * np.einsum("fii->fi", A)[:, :, None] * np.eye(nf) + 1e-15 * np.eye(nf)
         Bd = Bp + lam * np.einsum("pii->pi", Bp)[:, :, None] * np.eye(nb) + 1e-15 * np.eye(nb)
         if F * nf < P * nb:
+            Wc = (M[..., None, :] * C[:, None, None, :, None]).reshape(F, P, nf, nb)
             return self._keep_frames(Ad, Bd, Wc, gf, gb)
-        return self._keep_points(Ad, Bd, Wc, gf, gb)
+        return self._keep_points(Ad, Bd, M, C, gf, gb)
 
     @staticmethod
     def _keep_frames(Ad, Bd, Wc, gf, gb):
@@ -307,33 +312,47 @@ class _Fit:
         H = -(flat(Q) @ flat(Wc).T).reshape(F, nf, F, nf)
         H[np.arange(F), :, np.arange(F), :] += Ad
         U = Q.sum(1).reshape(n, nb)
-        M = np.block([[H.reshape(n, n), -U], [-U.T, -Bi.sum(0)]])
+        S = np.block([[H.reshape(n, n), -U], [-U.T, -Bi.sum(0)]])
         Qg = (Q @ gb[None, :, :, None]).sum(1)[..., 0]
         rhs = np.concatenate([-gf.ravel() + Qg.ravel(), (Bi @ gb[..., None]).sum(0)[..., 0]])
-        sol = np.linalg.solve(M, rhs)
+        sol = np.linalg.solve(S, rhs)
         df = sol[:n].reshape(F, nf)
         Wd = (np.swapaxes(Wc, 2, 3) @ df[:, None, :, None]).sum(0)[..., 0]
         db = -(Bi @ (gb + Wd + sol[n:])[..., None])[..., 0]
         return df, db
 
     @staticmethod
-    def _keep_points(Ad, Bd, Wc, gf, gb):
-        """Frames eliminated: the Schur complement onto the basis, the centring by nu."""
-        (F, nf), (P, nb) = gf.shape, gb.shape
+    def _keep_points(Ad, Bd, M, C, gf, gb):
+        """Frames eliminated: the Schur complement onto the basis, sum_f (C_f C_f') x (N_f'
+        N_f) with N_f = L_f^-1 M_f (its Kronecker form for a large K); the centring by nu."""
+        (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
         Li = np.linalg.inv(np.linalg.cholesky(Ad))
-        Wf = np.swapaxes(Wc, 1, 2).reshape(F, nf, P * nb)
-        N = (Li @ Wf).reshape(F * nf, P * nb)  # L^-1 W_f
+        N = Li @ M.transpose(0, 2, 1, 3).reshape(F, nf, 3 * P)  # L^-1 M_f
         h = (Li @ gf[:, :, None])[..., 0]  # L^-1 g_f
-        S = -(N.T @ N)  # the Schur complement onto the basis (SPD: the step is damped)
+        n3 = 3 * P
+        if K * K >= 2 * nf:  # the Kronecker form costs fewer flops than the full product
+            CC, G = _pairs(C), np.zeros((K * K, n3 * n3))
+            step = max(1, SCHUR_CHUNK // (n3 * n3))  # frames per chunk: bounded memory
+            for i in range(0, F, step):
+                Nc = N[i : i + step]
+                G += CC[i : i + step].T @ (np.swapaxes(Nc, 1, 2) @ Nc).reshape(len(Nc), -1)
+            G = G.reshape(K, K, P, 3, P, 3).transpose(2, 0, 3, 4, 1, 5).reshape(P * nb, -1)
+        else:  # one product of the full blocks (F nf, 3KP): faster for a few K
+            Nf = (N.reshape(F, nf, P, 1, 3) * C[:, None, None, :, None]).reshape(F * nf, -1)
+            G = Nf.T @ Nf
+        S = -G  # the Schur complement (SPD: the step is damped)
         S4 = S.reshape(P, nb, P, nb)  # a view
         S4[np.arange(P), :, np.arange(P), :] += Bd
         c = cho_factor(S)
-        y = cho_solve(c, -gb.ravel() + N.T @ h.ravel())
+        u = (np.swapaxes(N, 1, 2) @ h[:, :, None])[..., 0]  # (F, 3P)
+        Nh = (C.T @ u).reshape(K, P, 3).transpose(1, 0, 2).ravel()
+        y = cho_solve(c, -gb.ravel() + Nh)
         Y = cho_solve(c, np.tile(np.eye(nb), (P, 1)))  # S^-1 E' with E = [I ... I]
         nu = np.linalg.solve(Y.reshape(P, nb, nb).sum(0), y.reshape(P, nb).sum(0))
-        db = y - Y @ nu  # the centring: sum_p dB_p = 0
-        df = -(np.swapaxes(Li, 1, 2) @ (h + (N @ db).reshape(F, nf))[:, :, None])[..., 0]
-        return df, db.reshape(P, nb)
+        db = (y - Y @ nu).reshape(P, nb)  # the centring: sum_p dB_p = 0
+        D = np.einsum("fk,pkc->fpc", C, db.reshape(P, K, 3)).reshape(F, n3, 1)
+        df = -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
+        return df, db
 
     def minimise(self, R, ab, C, B, st):
         """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
@@ -357,7 +376,7 @@ class _Fit:
                 lam, nu = lam * nu, 2 * nu
                 if lam > 1e12:  # no step lowers E: a stationary point
                     return (R, ab, C, B), hist, True
-            A, Bp, _, gf, gb = blocks  # the model's decrease: (-g'd + lam d'Dd) / 2
+            A, Bp, _, _, gf, gb = blocks  # the model's decrease: (-g'd + lam d'Dd) / 2
             dD = np.einsum("fii->fi", A) * df**2, np.einsum("pii->pi", Bp) * db**2
             pred = 0.5 * (lam * (dD[0].sum() + dD[1].sum()) - (gf * df).sum() - (gb * db).sum())
             rho = (E - En) / pred if pred > 0 else 0.0
@@ -374,6 +393,11 @@ class _Fit:
             if converged:
                 break
         return (R, ab, C, B), hist, converged
+
+
+def _pairs(C):
+    """(F, K * K): the products C_fk C_fl of each frame's coefficients."""
+    return (C[:, :, None] * C[:, None, :]).reshape(C.shape[0], -1)
 
 
 def _balanced(C, B):
@@ -427,16 +451,20 @@ def _orders(fit, state):
     return [s for s in out if np.isfinite(fit.cost(*s)[0])]
 
 
-def _fit_orders(fit, state, st):
+def _fit_orders(fit, state, st, say=None, what="fit"):
     """Minimise (*) from ``state``; where another depth order lowers a frame's residual at
     the answer, flip those frames and minimise again (at most ``MAX_FLIP_ROUNDS`` times):
-    the order is discrete, the fit continuous."""
+    the order is discrete, the fit continuous. ``say(message)``: progress."""
     state, hist, converged = fit.minimise(*state, st)
+    n = len(hist["cost"]) - 1
     for _ in range(MAX_FLIP_ROUNDS):
         flip = np.logical_and(*_depth_orders(fit, *state))
         if not flip.any():
             break
         state, hist, converged = fit.minimise(*_flip(state, flip), st)
+        n += len(hist["cost"]) - 1
+    if say is not None:
+        say(f"perspective {what}: {n} iterations, E {hist['cost'][-1]:.4g}")
     return state, hist, converged
 
 
@@ -472,6 +500,7 @@ def refine_perspective(
     intrinsics,
     observed=None,
     settings=None,
+    progress=None,
 ):
     """Refine orthographic answers under the pinhole model (*) (module docstring).
 
@@ -498,6 +527,8 @@ def refine_perspective(
     observed : (F, P) bool ndarray, optional
         Where a point was seen (default: where x is finite).
     settings : PerspectiveSettings, optional
+    progress : callable, optional
+        Called with a message after each fit.
 
     Returns
     -------
@@ -519,7 +550,10 @@ def refine_perspective(
             "the orthographic answer puts points behind the camera in either depth order: "
             "check the intrinsics (the focal length in pixels, the principal point)"
         )
-    fits = [_fit_orders(free, s0, st) for s0 in starts]
+    fits = [
+        _fit_orders(free, s0, st, progress, f"fit without prior, start {i + 1}")
+        for i, s0 in enumerate(starts)
+    ]
     best_free = _best(fits)
     start = starts[next(i for i, f in enumerate(fits) if f is best_free)]  # its depth orders
     noise = _noise(free, best_free[0], K)
@@ -530,10 +564,11 @@ def refine_perspective(
     )
     reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
     fit = _Fit(xs, m, reg)
-    runs = {"direct": _fit_orders(fit, start, st)}
-    if rank_one is not None and K > 1:  # the rank-1 fit, K - 1 small columns added
-        one = _Fit(xs, m, np.zeros(1))
-        fits_1 = [_fit_orders(one, s1, st) for s1 in _orders(one, _start(*rank_one, 1))]
+    runs = {"direct": _fit_orders(fit, start, st, progress, "fit from the orthographic start")}
+    one = _Fit(xs, m, np.zeros(1))
+    starts_1 = [] if rank_one is None or K == 1 else _orders(one, _start(*rank_one, 1))
+    if starts_1:  # the rank-1 fit, K - 1 small columns added (none: points behind)
+        fits_1 = [_fit_orders(one, s1, st, progress, "rank-1 fit") for s1 in starts_1]
         R1, ab1, C1, B1 = _best(fits_1)[0]
         _, Bd = _factors(X0, K)  # the new columns: the rank-K answer's directions, small
         Bn = (
@@ -544,7 +579,7 @@ def refine_perspective(
         )
         Cn = np.full((F, K - 1), _SMALL * np.linalg.norm(C1) / np.sqrt(F))
         s0 = (R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn]))
-        runs["continuation"] = _fit_orders(fit, s0, st)
+        runs["continuation"] = _fit_orders(fit, s0, st, progress, "fit from the rank-1 fit")
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
     best = next(k for k, v in runs.items() if v is _best(list(runs.values())))
     (R, ab, C, B), hist, converged = runs[best]
