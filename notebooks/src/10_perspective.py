@@ -55,6 +55,12 @@ from nrsfm.stages.perspective import normalise
 from nrsfm.views import output_path, save_recording, show_recording, shown_path
 from nrsfm.warnings_catalog import ids_in
 
+
+def level(v, tol):
+    """A value that rounding decides, printed as its bound (the same on every machine)."""
+    return f"below {tol:g}" if abs(v) < tol else f"{v:.1e}"
+
+
 # %%
 seq = data_tools.make_synthetic(F=60, P=40, K=2, motion="smooth", seed=1)
 S0 = seq.shapes[0]  # frame 0 in the camera's axes (x, y, depth), centred
@@ -102,8 +108,8 @@ uv1 = np.stack([seq.tracks[:, 0], seq.tracks[:, 1], np.ones((F, P))], axis=1)
 x_hand = np.linalg.solve(A, uv1)[:, :2]  # A^-1 (u, v, 1)', frame by frame
 x = normalise(seq.W, A)  # the library's
 Y = seq.shapes + np.array([0.0, 0.0, seq.extra["depth"]])[:, None]  # the true points
-print(f"max |by hand - normalise| = {np.abs(x_hand - x).max():.0e}")
-print(f"max |normalise - true X / Z| = {np.abs(x - Y[:, :2] / Y[:, 2:3]).max():.0e}")
+print(f"max |by hand - normalise| = {level(np.abs(x_hand - x).max(), 1e-14)}")
+print(f"max |normalise - true X / Z| = {level(np.abs(x - Y[:, :2] / Y[:, 2:3]).max(), 1e-14)}")
 
 # %% [markdown]
 # The tracks are in pixels around the principal point; solved against $\mathbf A$ they
@@ -164,11 +170,13 @@ def project(R, S, t):
 
 err_1 = np.abs(project(R_true, S_true, t_true) - x).max()
 err_2 = np.abs(project(R_true, 2 * S_true, 2 * t_true) - x).max()
-print(f"max |pi(R S + t) - x| = {err_1:.0e}; shape and depth doubled: {err_2:.0e}")
+print(f"max |pi(R S + t) - x| = {level(err_1, 1e-14)}; ", end="")
+print(f"shape and depth doubled: {level(err_2, 1e-14)}")
 d_f = np.random.default_rng(0).uniform(2, 4, F)  # any depth per frame
 sv = np.linalg.svd((seq.world_shapes / d_f[:, None, None]).reshape(F, 3 * P), compute_uv=False)
 print(
-    f"shapes divided by a depth per frame, one frame per row: sigma_3 / sigma_1 = {sv[2] / sv[0]:.0e}"
+    "shapes divided by a depth per frame, one frame per row: sigma_3 / sigma_1 = "
+    + level(sv[2] / sv[0], 1e-12)
 )
 
 # %% [markdown]
@@ -200,9 +208,11 @@ pr = res.perspective
 e3d_start = nrsfm.e3d(res.shape_stage.shapes, seq.shapes)  # the orthographic answer
 e3d_refined = res.errors(seq.shapes)["e3d"]
 print(f"orthographic: e3d {e3d_start:.4f}, reprojection {pr.reprojection_before:.2f} px")
-print(f"refined ({pr.start} start, {pr.n_iter} iterations): e3d {e3d_refined:.0e}, ", end="")
-print(f"reprojection {pr.reprojection_after:.0e} px")
-print(f"translations (a, b, 1): max |a|, |b| = {np.abs(pr.translations[:, :2]).max():.0e}")
+print(f"refined ({pr.start} start, {pr.n_iter} iterations): ", end="")
+print(f"e3d {level(e3d_refined, 1e-12)}, ", end="")
+print(f"reprojection {level(pr.reprojection_after, 1e-10)} px")
+ab_max = np.abs(pr.translations[:, :2]).max()
+print(f"translations (a, b, 1): max |a|, |b| = {level(ab_max, 1e-12)}")
 
 # %% [markdown]
 # The orthographic answer is the one of the table above (three radii): its shapes are
@@ -233,8 +243,8 @@ def rms_px(R, S, t):
 R, S, t = pr.rotations, pr.shapes, pr.translations
 same_ortho = np.abs((Rz @ R)[:, :2] @ -S - R[:, :2] @ S).max()
 kept, other = rms_px(R, S, t), rms_px(Rz @ R, -S, t)
-print(f"orthographic images of the two orders differ by {same_ortho:.0e}")
-print(f"pinhole residual per frame: the answer at most {kept.max():.0e} px, ", end="")
+print(f"orthographic images of the two orders differ by {level(same_ortho, 1e-12)}")
+print(f"pinhole residual per frame: the answer at most {level(kept.max(), 1e-10)} px, ", end="")
 print(f"the other order at least {other.min():.1f} px")
 
 # %% [markdown]
@@ -281,8 +291,8 @@ ax.legend(fontsize=8)
 ax.grid(alpha=0.3)
 plt.show()
 c, dt_ = hist["cost"], hist["data_term"]
-print(f"E: {c[0]:.1e} at the start, {c[-1]:.0e} after {pr.n_iter} iterations")
-print(f"data term at the end: {dt_[-1]:.0e}; prior weight mu {pr.mu:.0e}")
+print(f"E: {c[0]:.1e} at the start, {level(c[-1], 1e-14)} after {pr.n_iter} iterations")
+print(f"data term at the end: {level(dt_[-1], 1e-14)}; prior weight mu {level(pr.mu, 1e-15)}")
 print(f"the start as an RMS image distance: {f_px * np.sqrt(2 * dt_[0] / (F * P)):.2f} px")
 
 # %% [markdown]
