@@ -101,9 +101,10 @@ class PerspectiveResult:
     shapes : (F, 3, P) ndarray
         ``S_f`` in the world frame, in units of the centroid's depth in frame f.
     intrinsics : (3, 3) ndarray
-    start : {"direct", "continuation"}
-        The start whose E was lower: the rank-K orthographic answer, or the rank-1
-        perspective fit with K - 1 small columns added.
+    start : {"direct", "direct 2", "direct 3", "continuation"}
+        The start whose E was lowest (among the answers within ``MAX_DEPTH_RATIO``): the
+        rank-K orthographic answer in the depth orders it has, all reversed, or each frame's
+        own (:func:`_orders`); or the rank-1 perspective fit with K - 1 small columns added.
     objectives : dict
         Final E of each start run.
     noise : float
@@ -442,13 +443,18 @@ def _start(rotations, shapes, centroids, K):
 
 
 def _orders(fit, state):
-    """``state`` with its frames' depth orders chosen by their residuals: each frame's own
-    choice, and the majority's for every frame when it differs (a frame whose residuals
-    barely differ guesses); those with every point in front of the cameras."""
+    """``state`` in three depth orders, each frame ``(R_f, S_f)`` or ``(Rz(pi) R_f, -S_f)``
+    (the same orthographic image): the sequence as the orthographic answer has it, every
+    frame reversed, and each frame's order with the lower perspective residual at the start
+    (a guess where the start's own error exceeds the perspective effect: MoCap shapes);
+    the distinct ones with every point in front of the cameras. The fits from them decide
+    (:func:`_fit_orders` re-chooses each frame's order at an answer)."""
     lower, ahead = _depth_orders(fit, *state)
-    own, majority = lower & ahead, (lower.mean() > 0.5) & ahead
-    out = [_flip(state, own)] + ([_flip(state, majority)] if (own != majority).any() else [])
-    return [s for s in out if np.isfinite(fit.cost(*s)[0])]
+    out = []
+    for flip in (np.zeros_like(ahead), ahead, lower & ahead):
+        if not any(np.array_equal(flip, f) for f, _ in out):
+            out.append((flip, _flip(state, flip)))
+    return [s for _, s in out if np.isfinite(fit.cost(*s)[0])]
 
 
 def _fit_orders(fit, state, st, say=None, what="fit"):
@@ -554,8 +560,7 @@ def refine_perspective(
         _fit_orders(free, s0, st, progress, f"fit without prior, start {i + 1}")
         for i, s0 in enumerate(starts)
     ]
-    best_free = _best(fits)
-    start = starts[next(i for i, f in enumerate(fits) if f is best_free)]  # its depth orders
+    best_free = min(fits, key=lambda f: f[1]["cost"][-1])  # the best fit measures the noise
     noise = _noise(free, best_free[0], K)
     bal = BilinearSettings()
     mu = max(
@@ -564,7 +569,12 @@ def refine_perspective(
     )
     reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
     fit = _Fit(xs, m, reg)
-    runs = {"direct": _fit_orders(fit, start, st, progress, "fit from the orthographic start")}
+    runs = {
+        ("direct", "direct 2", "direct 3")[i]: _fit_orders(
+            fit, s0, st, progress, f"fit from the orthographic start {i + 1}"
+        )
+        for i, s0 in enumerate(starts)
+    }
     one = _Fit(xs, m, np.zeros(1))
     starts_1 = [] if rank_one is None or K == 1 else _orders(one, _start(*rank_one, 1))
     if starts_1:  # the rank-1 fit, K - 1 small columns added (none: points behind)
@@ -581,7 +591,7 @@ def refine_perspective(
         s0 = (R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn]))
         runs["continuation"] = _fit_orders(fit, s0, st, progress, "fit from the rank-1 fit")
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
-    best = next(k for k, v in runs.items() if v is _best(list(runs.values())))
+    best = next(k for k, v in runs.items() if v is _best(list(runs.values())))  # first: tie
     (R, ab, C, B), hist, converged = runs[best]
     S = np.einsum("fk,kcp->fcp", C, B)
     t = np.column_stack([ab, np.ones(F)])
