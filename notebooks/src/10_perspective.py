@@ -274,10 +274,13 @@ print(f"smallest difference between the two orders: {margin:.1f} px")
 
 # %% [markdown]
 # The residual finds exactly the frames reversed on purpose, with a few pixels between the
-# two orders in every frame, although the start is itself a few pixels off. Where a
-# frame's two residuals barely differ the library also runs the start with every frame in
-# the majority's order, and after each fit it asks every frame again at the answer (where
-# the choice is clear, as above) and fits once more if one changes.
+# two orders in every frame, although the start is itself a few pixels off. That is not
+# always so: where the start is further off than the perspective effect (MoCap bodies seen
+# from a few radii), a frame's choice at the start is a guess. So the library fits from
+# three starts, the orders as the orthographic answer has them, all reversed, and each
+# frame's own choice; after each fit it asks every frame again at the answer (where the
+# choice is clear, as above) and fits once more if one changes; the fit with the lowest
+# objective is the answer.
 #
 # ## The cost along the iterations
 

@@ -18,16 +18,20 @@ organic prior of Eq. 10 in the factored form of the bilinear solver, ``a_1 = 0``
 ``S_f`` is the camera-frame shape divided by the depth of its centroid: ``(R_f X_f + t_f) /
 t_f,z = R_f S_f + (a_f, b_f, 1)``. Dividing each frame by a number keeps ``X#`` at rank K, so
 (*) is the low-rank perspective model with its scale ambiguity removed, and the orthographic
-answer on ``x`` (shapes in the same units at weak perspective) is its start. Two choices the
-orthographic model cannot make are made at the start: per frame, ``(R_f, S_f)`` or
-``(Rz(pi) R_f, -S_f)`` (the same orthographic image, depths reversed), by the perspective
-residual. Two starts are run: *direct* (the rank-K orthographic answer) and *continuation*
-(the rank-1 perspective fit, then K - 1 more columns started small); the one with the lower E
-is the answer (:func:`refine_perspective`).
+answer on ``x`` (shapes in the same units at weak perspective) is its start. What the
+orthographic model cannot tell is each frame's depth order, ``(R_f, S_f)`` or
+``(Rz(pi) R_f, -S_f)`` (the same orthographic image, depths reversed): the rank-K
+orthographic answer is started in three orders (as it has them, all reversed, each frame's
+with the lower perspective residual), and after each fit every frame is asked again at the
+answer. One more start is the *continuation*: the rank-1 perspective fit, then K - 1 more
+columns started small. The prior's balance comes from the noise of the best fit without
+prior; the answer is the lowest E of the fits with the prior within ``MAX_DEPTH_RATIO``
+(:func:`refine_perspective`; why: ``docs/studies/perspective.md``).
 
-Minimised by Levenberg-Marquardt with the analytic Jacobian; the per-frame blocks (rotation,
-translation, coefficients) are eliminated (Schur complement, as in bundle adjustment), the
-basis solved with its centring as a constraint.
+Minimised by Levenberg-Marquardt with the analytic Jacobian; the larger of the per-frame
+block set (rotation, translation, coefficients) and the per-point one (the basis) is
+eliminated (Schur complement, as in bundle adjustment), the basis kept centred by a
+multiplier, its factors rebalanced to the prior's minimum after each step.
 
 References: Xiao and Kanade (2005), Del Bue et al. (2006), Hartley and Vidal (2008) on
 perspective NRSfM; Triggs et al. (2000) on the Schur complement in bundle adjustment.
