@@ -133,10 +133,7 @@ def _log_perspective_cameras_and_image(rec, rr, c, r_ln):
     images = [("measured", c.tracks, GT_COLOR, -7.0, 1.0)]
     images.append(("orthographic", c.orthographic_image, ORTHOGRAPHIC_COLOR, -5.0, 2.0))
     images.append(("perspective", c.perspective_image, ESTIMATE_COLOR, -3.0, 3.0))
-    for name, pts, color, radius, order in images:
-        rl.send_points_2d(rec, rr, f"/image/{name}", pts, c.frames)
-        style = rr.Points2D.from_fields(colors=[color], radii=[radius], draw_order=order)
-        rec.log(f"/image/{name}", style, static=True)
+    _log_images(rec, rr, c, images)
 
 
 def _log_perspective_series(rec, rr, c):
@@ -171,6 +168,12 @@ def _log_cameras_and_image(rec, rr, c, r_ln):
     # (negative in rerun): the same size at any zoom and data scale
     images = [("measured", c.tracks, GT_COLOR, -7.0, 1.0)]
     images.append(("reprojected", c.reprojected, ESTIMATE_COLOR, -4.0, 2.0))
+    _log_images(rec, rr, c, images)
+
+
+def _log_images(rec, rr, c, images):
+    """Point sets ``(name, points, color, radius, draw order)`` under ``/image/name``, per
+    frame, each with its static style."""
     for name, pts, color, radius, order in images:
         rl.send_points_2d(rec, rr, f"/image/{name}", pts, c.frames)
         style = rr.Points2D.from_fields(colors=[color], radii=[radius], draw_order=order)
