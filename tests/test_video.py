@@ -448,3 +448,110 @@ def test_video_completion_converges(video, detect_every):
     vr = _reconstruct_tracks_warning_iff_capped(tr.W, 1, method="pseudo_inverse")
     completion = vr.result.completion
     assert vr.missing_data and completion.converged and completion.n_iter < 50
+
+
+# --------------------------------------------------------------------------- perspective
+
+
+def _read_rrd(path):
+    """entity path -> {'static': [record batches], 'temporal': [record batches]}."""
+    from rerun.chunk import RrdReader
+
+    out = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        d = out.setdefault(chunk.entity_path, {"static": [], "temporal": []})
+        d["static" if chunk.is_static else "temporal"].append(chunk.to_record_batch())
+    return out
+
+
+def _column(batches, name):
+    """A component column over batches, in frame order (the static ones: as logged)."""
+    vals, idx = [], []
+    for b in batches:
+        if name in b.schema.names:
+            vals += b.column(name).to_pylist()
+            if "frame" in b.schema.names:
+                idx += b.column("frame").to_pylist()
+    return [vals[i] for i in np.argsort(idx, kind="stable")] if idx else vals
+
+
+PERSPECTIVE_PATHS = ("/world/cameras/estimate", "/world/trajectory/estimate", "/video/perspective")
+
+
+@pytest.fixture(scope="module")
+def pinhole_video():
+    """Exact pinhole tracks of a synthetic sequence (3 object radii away) as a video's tracks,
+    over plain 800 x 600 frames (drawn at 0.8 scale); track 0 is left out of the run."""
+    import data_tools as dt
+    from data_tools.track_state import Tracks
+
+    F, P = 12, 40
+    cam = dt.PerspectiveCamera(distance=3.0, focal=600.0, principal=(400.0, 300.0))
+    s = dt.make_synthetic(F=F, P=P, K=1, motion="smooth", seed=2, camera=cam)
+    colors = np.full((P, 3), 200, np.uint8)
+    tracks = Tracks(
+        s.W.reshape(F, 2, P), np.full(P, F), np.zeros((F, P)), colors, "exact", (600, 800)
+    )
+    frames = np.full((F, 600, 800, 3), 90, np.uint8)
+    used = np.arange(P) > 0
+    return s, tracks, frames, used, cam.intrinsics
+
+
+@pytest.mark.parametrize("perspective", [True, False])
+def test_video_recording_of_a_perspective_run_shows_the_cameras(
+    tmp_path, pinhole_video, perspective
+):
+    """With a camera: each frame's camera at its centre -R_f' t_f with the frame's frustum,
+    their trajectory, and over the frames the perspective projection of the drawn (used,
+    determined) tracks, which on exact data is the tracks; the shapes as returned, the truth
+    aligned onto them, e3d as before. Without one: none of these."""
+    from nrsfm.metrics import e3d
+    from nrsfm.views.video import aligned_subset, decimate, save_video_recording
+
+    s, tracks, frames, used, A = pinhole_video
+    F, zoom = s.n_frames, 0.8
+    kw = dict(intrinsics=A) if perspective else {}
+    vr = reconstruct_tracks(tracks.W[:, used], 1, method="pseudo_inverse", **kw)
+    res, gt = vr.result, s.shapes[:, :, used]
+    path = tmp_path / "p.rrd"
+    kw = dict(shapes_gt=gt, max_points_2d=20, max_points_3d=None)
+    info = save_video_recording(path, frames, tracks, res, used, **kw)
+    data = _read_rrd(path)
+    assert info["points_2d"] == 20 and info["points_3d"] == used.sum()
+    e = _column(data["/errors/e3d"]["temporal"], "Scalars:scalars")
+    np.testing.assert_allclose(np.ravel(e), e3d(res.shapes, gt, per_frame=True), atol=1e-9)
+    per = aligned_subset(res.shapes, gt, np.arange(res.n_points))[0]
+    np.testing.assert_allclose(np.ravel(e), per, rtol=1e-12, atol=1e-15)  # as without camera
+    est = np.asarray(_column(data["/world/estimate"]["temporal"], "Points3D:positions"))
+    truth = np.asarray(_column(data["/world/ground_truth"]["temporal"], "Points3D:positions"))
+    report = _column(data["/run/report"]["static"], "TextDocument:text")[0][0]
+    if not perspective:
+        assert not set(PERSPECTIVE_PATHS) & set(data)
+        assert not any(q.startswith("/world/cameras") for q in data)
+        assert "perspective" not in report
+        np.testing.assert_allclose(est.mean(axis=1), 0.0, atol=1e-4)  # aligned onto the truth
+        return
+    p = res.perspective
+    assert set(PERSPECTIVE_PATHS) <= set(data)
+    # the cameras at their centres, the frame's full-resolution frustum, their trajectory
+    cams = data["/world/cameras/estimate"]
+    centres = np.asarray(_column(cams["temporal"], "Transform3D:translation")).reshape(F, 3)
+    np.testing.assert_allclose(centres, -np.einsum("fji,fj->fi", p.rotations, p.translations))
+    K_cam = _column(cams["static"], "Pinhole:image_from_camera")[0][0]
+    np.testing.assert_allclose(np.reshape(K_cam, (3, 3)).T, A, rtol=1e-6)
+    np.testing.assert_allclose(_column(cams["static"], "Pinhole:resolution")[0][0], [800, 600])
+    strip = _column(data["/world/trajectory/estimate"]["static"], "LineStrips3D:strips")[0][0]
+    np.testing.assert_allclose(np.asarray(strip), centres, rtol=1e-6)
+    # the shapes as returned, the truth aligned onto them (exact data: the same points)
+    np.testing.assert_allclose(est, res.shapes.transpose(0, 2, 1), atol=1e-6)
+    np.testing.assert_allclose(truth, est, atol=1e-5)
+    # the projection of the drawn tracks that were used: the tracks, at the display's scale
+    drawn = decimate(tracks.n_points, 20)
+    drawn = drawn[used[drawn]]
+    pts = np.asarray(_column(data["/video/perspective"]["temporal"], "Points2D:positions"))
+    assert pts.shape == (F, len(drawn), 2) and len(drawn) == 19
+    np.testing.assert_allclose(pts, zoom * tracks.tracks[:, :, drawn].transpose(0, 2, 1), atol=1e-3)
+    order = _column(data["/video/perspective"]["static"], "Points2D:draw_order")[0][0]
+    assert order > _column(data["/video/tracks"]["temporal"], "Points2D:draw_order")[0][0]
+    rms = f"{p.reprojection_before:.4g} px (orthographic start) -> {p.reprojection_after:.4g} px"
+    assert f"reprojection RMS {rms}; start {p.start}" in report

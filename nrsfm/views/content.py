@@ -148,6 +148,17 @@ def _rms_per_frame(d, mask):
     return np.sqrt(np.sum(np.where(mask[..., None], d, 0.0) ** 2, axis=(1, 2)) / n)
 
 
+def perspective_cameras(result):
+    """A perspective result's cameras as drawn: the (F, 3) centres ``-R_f' t_f`` in the
+    refinement's world frame, their mean distance from its origin and the cameras' axis
+    length (the frusta reach 3 times as far)."""
+    R = np.asarray(result.rotations, float)
+    t = np.asarray(result.perspective.translations, float)
+    centres = -np.einsum("fji,fj->fi", R, t)
+    distance = float(np.mean(np.linalg.norm(centres, axis=1)))
+    return centres, distance, 0.12 * distance
+
+
 def _perspective_content(c, result, sequence, image_size=None):
     """Redraw the world and the image of ``c`` for a perspective result (module docstring):
     shapes and cameras in the refinement's world frame, the image in pixels."""
@@ -161,11 +172,9 @@ def _perspective_content(c, result, sequence, image_size=None):
     if X_gt is not None:
         c.shapes_gt = align_similarity(X_gt, X_est).transpose(0, 2, 1).copy()
     c.cameras_est, c.cameras_gt = complete_rotations(R_est), None
-    c.camera_centres = -np.einsum("fji,fj->fi", R_est, np.asarray(p.translations, float))
+    c.camera_centres, c.camera_distance, c.axis_length = perspective_cameras(result)
     extent = float(np.max(np.linalg.norm(X_est, axis=1))) if X_est.size else 1.0
     extent = extent if extent > 0 else 1.0
-    c.camera_distance = float(np.mean(np.linalg.norm(c.camera_centres, axis=1)))
-    c.axis_length = 0.12 * c.camera_distance  # the frusta reach 3 times as far
     c.point_scale = 3.0 * extent  # the points twice the size they have in an orthographic view
     if image_size is None and sequence is not None:
         image_size = sequence.extra.get("image_size")

@@ -120,16 +120,25 @@ def _log_shapes(rec, rr, c, r_pt, r_ln):
         rl.send_skeleton(rec, rr, skeleton, c.shapes_gt, c.edges, fr, GT_COLOR, 0.6 * r_ln)
 
 
+def log_perspective_cameras(rec, rr, R, centres, frames, sizes, pinhole, color, r_ln):
+    """``/world/cameras/estimate``: camera f at its centre ``centres[f]`` (rotation ``R_f``
+    world -> camera) with the frustum of ``pinhole`` = (camera matrix, (width, height)),
+    ``sizes`` = (camera distance, axis length) (:func:`.content.perspective_cameras`); and
+    ``/world/trajectory/estimate``, the line strip of the centres (radius ``r_ln``)."""
+    args = (R, frames, *sizes, color, 3.0)
+    path = "/world/cameras/estimate"
+    centres = rl.send_camera(rec, rr, path, *args, centres=centres, pinhole=pinhole)
+    strip = rr.LineStrips3D([centres], colors=[color], radii=[r_ln])
+    rec.log("/world/trajectory/estimate", strip, static=True)
+
+
 def _log_perspective_cameras_and_image(rec, rr, c, r_ln):
     """Cameras at their centres with the intrinsics' frusta; the image in pixels: the tracks
     (large, blue), the orthographic start's projection (green), the perspective one (small,
     orange)."""
-    args = (c.cameras_est, c.frames, c.camera_distance, c.axis_length, ESTIMATE_COLOR, 3.0)
-    pinhole = (c.intrinsics, c.image_size)
-    path = "/world/cameras/estimate"
-    centres = rl.send_camera(rec, rr, path, *args, centres=c.camera_centres, pinhole=pinhole)
-    strip = rr.LineStrips3D([centres], colors=[ESTIMATE_COLOR], radii=[r_ln])
-    rec.log("/world/trajectory/estimate", strip, static=True)
+    sizes, pinhole = (c.camera_distance, c.axis_length), (c.intrinsics, c.image_size)
+    args = (c.cameras_est, c.camera_centres, c.frames, sizes, pinhole, ESTIMATE_COLOR, r_ln)
+    log_perspective_cameras(rec, rr, *args)
     images = [("measured", c.tracks, GT_COLOR, -7.0, 1.0)]
     images.append(("orthographic", c.orthographic_image, ORTHOGRAPHIC_COLOR, -5.0, 2.0))
     images.append(("perspective", c.perspective_image, ESTIMATE_COLOR, -3.0, 3.0))

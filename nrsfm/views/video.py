@@ -12,6 +12,19 @@ Entity paths (timeline ``frame``):
 * ``/world/ground_truth``: Points3D, the true shape (same points), blue.
 * ``/errors/e3d``: per-frame error with a ground truth; ``/tracks/alive``: tracks observed.
 * ``/run/report``: TextDocument (markdown) with counts, errors and timings [static].
+
+A perspective run (``result.perspective``: ``nrsfm video --focal`` / ``--intrinsics``) is
+drawn in the refinement's world frame (as :mod:`.recording` draws it), so that the cameras
+show:
+
+* ``/world/estimate``: the shapes as returned (units of each frame's centroid depth), not
+  aligned; ``/world/ground_truth``: the truth similarity-aligned per frame onto them (e3d
+  still aligns the estimate onto the truth).
+* ``/world/cameras/estimate``: Transform3D of each frame's camera at its centre
+  ``-R_f' t_f``, with axes and the intrinsics' frustum of the full-resolution frame;
+  ``/world/trajectory/estimate``: LineStrips3D of the centres [static].
+* ``/video/perspective``: Points2D, magenta, the perspective projection of the drawn tracks
+  that are used and determined, in every frame (over the tracks).
 """
 
 from __future__ import annotations
@@ -29,6 +42,8 @@ USED_COLOR = (60, 230, 60, 255)
 UNUSED_COLOR = (250, 220, 40, 255)
 UNDETERMINED_COLOR = (255, 140, 0, 255)
 LOST_COLOR = (255, 40, 40, 255)
+#: a perspective run's cameras and their projection of the tracks' 3D
+PERSPECTIVE_COLOR = (255, 40, 230, 255)
 GT_COLOR = (70, 130, 255, 160)
 #: frames wider than this (pixels) are downscaled before JPEG encoding, at this quality
 MAX_WIDTH, JPEG_QUALITY = 640, 80
@@ -41,10 +56,13 @@ def decimate(n, max_n):
     return np.unique(np.linspace(0, n - 1, int(max_n)).astype(int))
 
 
-def aligned_subset(X, G, sel):
+def aligned_subset(X, G, sel, onto_estimate=False):
     """Per-frame e3d of ``X`` against ``G`` ((F, 3, P) each) and, at the points ``sel``, the
     aligned estimate and the centred ground truth ((F, n, 3) float32 each); aligned one frame
-    at a time as :func:`nrsfm.geometry.align_similarity`, so that memory stays O(P)."""
+    at a time as :func:`nrsfm.geometry.align_similarity`, so that memory stays O(P).
+
+    ``onto_estimate``: instead, the estimate as given and the ground truth similarity-aligned
+    per frame onto it (the e3d are the same: the estimate aligned onto the truth)."""
     from ..geometry import align_similarity
 
     F = X.shape[0]
@@ -54,6 +72,9 @@ def aligned_subset(X, G, sel):
         A = align_similarity(X[f : f + 1], G[f : f + 1])[0]
         B = G[f] - G[f].mean(axis=1, keepdims=True)
         per[f] = np.linalg.norm(B - A) / np.linalg.norm(B)
+        if onto_estimate:
+            A = X[f]
+            B = align_similarity(G[f : f + 1], A[None])[0] + A.mean(axis=1, keepdims=True)
         Xd[f], Gd[f] = A[:, sel].T, B[:, sel].T
     return per, Xd, Gd
 
@@ -100,25 +121,57 @@ def _log_tracks(rec, rr, tracks, colors, zoom, max_points):
 
 def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
     """The 3D estimate of the tracks the data determine (and their ground truth); returns
-    (points drawn, errors)."""
-    det = ~result.undetermined
+    (points drawn, errors). A perspective result's shapes are drawn as returned."""
+    det, perspective = ~result.undetermined, getattr(result, "perspective", None) is not None
     X = np.asarray(result.shapes)[:, :, det]
     fr, sel = np.arange(X.shape[0]), decimate(int(det.sum()), max_points)
     errs = {}
     if shapes_gt is not None:
-        per, X_disp, G_disp = aligned_subset(X, np.asarray(shapes_gt)[:, :, det], sel)
+        G = np.asarray(shapes_gt)[:, :, det]
+        per, X_disp, G_disp = aligned_subset(X, G, sel, onto_estimate=perspective)
         errs["e3d"] = float(per.mean())
         rl.send_scalars(rec, rr, "/errors/e3d", per, fr)
         rl.send_points(rec, rr, "/world/ground_truth", G_disp, fr)
         style = rr.Points3D.from_fields(colors=[GT_COLOR], radii=[-1.5])
         rec.log("/world/ground_truth", style, static=True)
     else:
-        X_disp = X[:, :, sel] - X.mean(axis=2, keepdims=True)
+        X_disp = X[:, :, sel] if perspective else X[:, :, sel] - X.mean(axis=2, keepdims=True)
         X_disp = X_disp.transpose(0, 2, 1).astype(np.float32)
     rl.send_points(rec, rr, "/world/estimate", X_disp, fr)
     col = tracks.colors[np.flatnonzero(used)[det]][sel]
     rec.log("/world/estimate", rr.Points3D.from_fields(colors=col, radii=[-2.0]), static=True)
     return len(sel), errs
+
+
+def _log_perspective(rec, rr, result, tracks, used, frames, zoom, max_points):
+    """A perspective result's cameras (:func:`.recording.log_perspective_cameras`) and, over
+    the frames, the perspective projection of the drawn tracks that are used and determined;
+    returns how many tracks are projected."""
+    from .content import _pixels, perspective_cameras
+    from .recording import log_perspective_cameras
+
+    p, F = result.perspective, frames.shape[0]
+    A = np.asarray(p.intrinsics, float)
+    centres, distance, axis_length = perspective_cameras(result)
+    pinhole = (A, (float(frames.shape[2]), float(frames.shape[1])))
+    R = np.asarray(p.rotations, float)
+    # the trajectory's radius in screen points (negative), as the points': the camera centres
+    # pass near the viewer's eye, where a radius in scene units swells
+    args = (R, centres, np.arange(F), (distance, axis_length), pinhole, PERSPECTIVE_COLOR, -1.0)
+    log_perspective_cameras(rec, rr, *args)
+    # the result's column of each used track; the drawn ones (as _log_tracks) determined
+    column = np.cumsum(used) - 1
+    sel = decimate(tracks.n_points, max_points)
+    determined = np.zeros(tracks.n_points, bool)
+    determined[np.flatnonzero(used)] = ~np.asarray(result.undetermined, bool)
+    cols = column[sel[determined[sel]]]
+    Y = R @ np.asarray(p.shapes, float)[:, :, cols] + np.asarray(p.translations)[:, :, None]
+    pix = (_pixels(Y[:, :2] / Y[:, 2:3], A) * zoom).astype(np.float32)
+    rl.send_points_2d(rec, rr, "/video/perspective", pix, np.arange(F))
+    r2 = 0.6 * max(1.0, 1.5 * zoom)  # smaller than the tracks', above them
+    style = rr.Points2D.from_fields(colors=[PERSPECTIVE_COLOR], radii=[r2], draw_order=12)
+    rec.log("/video/perspective", style, static=True)
+    return len(cols)
 
 
 def _video_report(tracks, result, frames, zoom, n2, n3, errs):
@@ -135,6 +188,11 @@ def _video_report(tracks, result, frames, zoom, n2, n3, errs):
             f"Reconstruction: method {r.method}, K = {r.K}, {used} ({why} out of the 3D view).",
         ]
         lines += [f"- {k}: {v:.4g}" for k, v in errs.items()]
+        p = getattr(r, "perspective", None)
+        if p is not None:
+            rms = f"{p.reprojection_before:.4g} px (orthographic start) -> "
+            rms += f"{p.reprojection_after:.4g} px"
+            lines.append(f"- perspective refinement: reprojection RMS {rms}; start {p.start}")
         lines += [f"- time {k}: {v:.2f} s" for k, v in r.timings.items()]
     return "\n".join(lines)
 
@@ -158,7 +216,8 @@ def save_video_recording(
         BGR frames.
     tracks : data_tools.video.Tracks
     result : nrsfm.Reconstruction, optional
-        Reconstruction of the tracks ``used`` ((P,) bool; default all).
+        Reconstruction of the tracks ``used`` ((P,) bool; default all). A perspective one
+        (``result.perspective``) is drawn with its cameras (module docstring).
     shapes_gt : (F, 3, P_used) ndarray, optional
         Ground truth of the used tracks (compared per frame after similarity alignment).
     max_points_2d, max_points_3d : int or None
@@ -190,6 +249,9 @@ def save_video_recording(
         n3, errs = 0, {}
         if result is not None:
             n3, errs = _log_world(rec, rr, result, tracks, used, shapes_gt, max_points_3d)
+            if getattr(result, "perspective", None) is not None:
+                args = (tracks, used, frames, zoom, max_points_2d)
+                _log_perspective(rec, rr, result, *args)
         text = _video_report(tracks, result, frames, zoom, n2, n3, errs)
         report = rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN)
         rec.log("/run/report", report, static=True)
