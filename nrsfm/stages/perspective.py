@@ -24,14 +24,21 @@ orthographic model cannot tell is each frame's depth order, ``(R_f, S_f)`` or
 orthographic answer is started in three orders (as it has them, all reversed, each frame's
 with the lower perspective residual), and after each fit every frame is asked again at the
 answer. One more start is the *continuation*: the rank-1 perspective fit, then K - 1 more
-columns started small. The prior's balance comes from the noise of the best fit without
-prior; the answer is the lowest E of the fits with the prior within ``MAX_DEPTH_RATIO``
-(:func:`refine_perspective`; why: ``docs/studies/perspective.md``).
+columns started small. From every start (*) is fitted without the prior; a fit that comes
+within ``MERGE_TOL`` of an earlier one's answer stops (the same minimum). The best of these
+fits gives the noise and with it the prior's balance; the fit with the prior starts from
+each distinct minimum without it, and the answer is the lowest E of those within
+``MAX_DEPTH_RATIO`` (:func:`refine_perspective`; why: ``docs/studies/perspective.md``).
+Fits stop at ``LOOSE_TOL`` while the depth orders settle; the best ones (within
+``POLISH_MARGIN`` of the lowest E) go on to the settings' ``tol``.
 
 Minimised by Levenberg-Marquardt with the analytic Jacobian; the larger of the per-frame
 block set (rotation, translation, coefficients) and the per-point one (the basis) is
 eliminated (Schur complement, as in bundle adjustment), the basis kept centred by a
-multiplier, its factors rebalanced to the prior's minimum after each step.
+multiplier, its factors rebalanced to the prior's minimum after each step. A large reduced
+system in the basis is solved by conjugate gradients (each point's block as preconditioner,
+to ``CG_TOL`` of the residual, less near an exact fit), and factorised where they do not
+converge within ``CG_MAX_ITER``.
 
 References: Xiao and Kanade (2005), Del Bue et al. (2006), Hartley and Vidal (2008) on
 perspective NRSfM; Triggs et al. (2000) on the Schur complement in bundle adjustment.
@@ -60,6 +67,32 @@ _SMALL = 1e-3  # the continuation's new columns, relative to the first column's 
 SCHUR_CHUNK = 4_000_000
 #: rounds of depth orders re-chosen at the answer and the fit repeated, at most
 MAX_FLIP_ROUNDS = 3
+#: relative decrease of E at which fits stop while the depth orders settle and before
+#: they are compared (the best are taken on to the settings' tol)
+LOOSE_TOL = 1e-3
+#: basis unknowns (3 K P) from which the reduced system is solved by conjugate gradients
+#: (a Newton step to ``CG_TOL`` of its residual) rather than factorised: 200 x 100, K = 2,
+#: 9 ms against 26 ms a step; K = 1 (300 unknowns): 7 against 5 ms
+CG_UNKNOWNS = 400
+#: relative distance of the camera points at which a fit is taken to be reaching the
+#: minimum of an earlier one (and stopped)
+MERGE_TOL = 1e-2
+#: fits taken on to the settings' tol: those whose E at LOOSE_TOL is within this
+#: fraction of the lowest (taking a fit on lowered its E by at most 2.9 % on the real sets
+#: at K = 1-3 and the synthetic F = 100 sequences of the benchmark, except one far fit)
+POLISH_MARGIN = 0.1
+#: the largest damping (Marquardt's lam) of a step whose small decrease counts as converged
+MAX_CONVERGED_DAMPING = 1.0
+#: Marquardt's scaling of the coefficients and the basis at least this fraction of its mean
+#: (the continuation's small new columns: their own scale let steps run off)
+DAMPING_FLOOR = 1e-2
+#: E below this fraction of the tracks' spread (1/2 sum of squares about each frame's
+#: centroid) is rounding (an exact fit): converged
+ROUNDING_E = 1e-28
+#: the conjugate gradients' residual at a step, relative to the first (an inexact Newton
+#: step); at most CG_MAX_ITER of them, then the factorisation for the rest of the fit
+CG_TOL = 1e-2
+CG_MAX_ITER = 50
 #: the largest ratio of two points' depths in one frame for an answer to count as a camera
 #: outside the object: (d + r) / (d - r) = 10 puts the camera d = 11/9 r from the centroid
 #: of an object of radius r; a fit beyond it stretches points towards the camera's centre
@@ -74,9 +107,12 @@ class PerspectiveSettings:
     Parameters
     ----------
     max_iter : int
-        Levenberg-Marquardt iterations per start, at most.
+        Levenberg-Marquardt iterations of one fit (a start in one set of depth orders), at
+        most.
     tol : float
-        Stop when an iteration lowers E by less than ``tol E``.
+        Stop when a step close to Gauss-Newton's (damping at most
+        ``MAX_CONVERGED_DAMPING``) lowers E by less than ``tol E``, when no step can lower
+        it by as much, or at rounding level (``ROUNDING_E``).
 
     Raises
     ------
@@ -117,10 +153,12 @@ class PerspectiveResult:
         The prior's balance from ``noise``; ``reg = mu a`` the weights of (*).
     reg : (K,) ndarray
     history : dict of ndarrays
-        Per iteration of the chosen start's last fit: ``cost`` (E), ``data_term``, ``damping``.
+        Per iteration of the answer's path, its fit without prior (in its last depth orders)
+        then with the prior: ``cost`` (E of the fit's objective), ``data_term``,
+        ``damping``, ``prior`` (0, then 1 from the first iteration with the prior).
     n_iter : int
     converged : bool
-        The last iteration lowered E by less than ``tol E`` (or no step could lower it).
+        The chosen fit stopped by ``tol`` (:class:`PerspectiveSettings`), not ``max_iter``.
     tol : float
         The settings' ``tol``.
     depth_ratio : float
@@ -246,9 +284,13 @@ class _Fit:
 
     def __init__(self, x, mask, reg):
         self.x, self.m, self.reg = x, mask, np.asarray(reg, float)
+        self.factorise = False  # the reduced system by Cholesky (conjugate gradients failed)
+        n = np.maximum(mask.sum(1), 1)[:, None, None]
+        centroid = (x * mask[:, None]).sum(2, keepdims=True) / n
+        self.spread = 0.5 * float(np.sum(mask[:, None] * (x - centroid) ** 2))
 
     def residual(self, R, ab, C, B):
-        S = np.einsum("fk,kcp->fcp", C, B)
+        S = (C @ B.reshape(B.shape[0], -1)).reshape(C.shape[0], 3, -1)
         Y = R @ S
         Y[:, :2] += ab[:, :, None]
         Y[:, 2] += 1.0
@@ -265,28 +307,36 @@ class _Fit:
     def normal_equations(self, R, ab, C, B):
         """Gradient and Gauss-Newton blocks of (*): frames (F, nf), points (P, 3K), and the
         cross blocks in their Kronecker form: the basis entry (k, c) of point p enters
-        frame f as C_fk times column c of ``M`` (F, P, nf, 3)."""
+        frame f as C_fk times ``M[f, :, p, c]`` (M: (F, nf, P, 3))."""
         Y, S, r = self.residual(R, ab, C, B)
         F, K, P = C.shape[0], C.shape[1], B.shape[2]
-        Z = Y[:, 2]
-        J = np.zeros((F, P, 2, 3))  # d pi / d Y, masked
-        J[..., 0, 0] = J[..., 1, 1] = self.m / Z
-        J[..., 0, 2], J[..., 1, 2] = -self.m * Y[:, 0] / Z**2, -self.m * Y[:, 1] / Z**2
-        RS = np.swapaxes(R @ S, 1, 2)  # (F, P, 3)
-        Jw = -J @ _skew(RS)  # rotation increment: d(R S) = w x (R S)
-        RB = np.moveaxis(R[:, None] @ B[None], (1, 3), (3, 1))  # (F, P, 3, K): R_f B_k
-        JR = J @ R[:, None]  # (F, P, 2, 3): d pi / d B_k[:, p], per unit of C_fk
-        Jf = np.concatenate([Jw, J[..., :2], J @ RB], axis=3)
-        rr = np.swapaxes(r, 1, 2)[..., None]  # (F, P, 2, 1)
-        nf, CC = Jf.shape[3], _pairs(C)
-        Jf2 = Jf.reshape(F, 2 * P, nf)
-        A = np.swapaxes(Jf2, 1, 2) @ Jf2
-        M = np.swapaxes(Jf, 2, 3) @ JR
-        gf = (np.swapaxes(Jf, 2, 3) @ rr).sum(1)[..., 0]
-        QR = (np.swapaxes(JR, 2, 3) @ JR).reshape(F, 9 * P)
-        Bp = (CC.T @ QR).reshape(K, K, P, 3, 3).transpose(2, 0, 3, 1, 4).reshape(P, 3 * K, -1)
-        v = (np.swapaxes(JR, 2, 3) @ rr)[..., 0].reshape(F, 3 * P)
-        gb = (C.T @ v).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, 3 * K)
+        nf = 5 + K
+        iz = self.m / Y[:, 2]  # d pi_i / d Y = iz (e_i - u_i e_3), masked; u = pi(Y)
+        u = Y[:, :2] / Y[:, 2:3]  # (F, 2, P)
+        q = Y - np.array([0.0, 0.0, 1.0])[None, :, None]  # R_f S_f (F, 3, P)
+        q[:, :2] -= ab[:, :, None]
+        # d pi_i / d(w, a, b, C_f) (F, 2, nf, P); d(R S) = w x (R S), so d pi_i / dw =
+        # (R S) x (d pi_i / d Y): the cross products written out
+        Jf = np.zeros((F, 2, nf, P))
+        izu = iz[:, None] * u
+        Jf[:, 0, 0], Jf[:, 0, 2] = -izu[:, 0] * q[:, 1], -iz * q[:, 1]
+        Jf[:, 0, 1] = iz * q[:, 2] + izu[:, 0] * q[:, 0]
+        Jf[:, 1, 0] = -izu[:, 1] * q[:, 1] - iz * q[:, 2]
+        Jf[:, 1, 1], Jf[:, 1, 2] = izu[:, 1] * q[:, 0], iz * q[:, 0]
+        Jf[:, 0, 3], Jf[:, 1, 4] = iz, iz
+        RB = (R @ B.transpose(1, 0, 2).reshape(3, K * P)).reshape(F, 3, K, P)  # R_f B_k
+        Jf[:, :, 5:] = iz[:, None, None] * RB[:, :2] - izu[:, :, None] * RB[:, 2:3]
+        # d pi_i / d B_k[:, p] per unit of C_fk: (F, 2, 3, P)
+        JR = iz[:, None, None] * R[:, :2, :, None] - izu[:, :, None] * R[:, 2, None, :, None]
+        A = Jf.transpose(0, 2, 1, 3).reshape(F, nf, 2 * P)
+        A = A @ np.swapaxes(A, 1, 2)
+        M = np.einsum("finp,ficp->fnpc", Jf, JR)
+        gf = np.einsum("finp,fip->fn", Jf, r)
+        QR = np.einsum("ficp,fidp->fpcd", JR, JR).reshape(F, 9 * P)
+        Bp = (_pairs(C).T @ QR).reshape(K, K, P, 3, 3).transpose(2, 0, 3, 1, 4)
+        Bp = Bp.reshape(P, 3 * K, -1)
+        v = (JR[:, 0] * r[:, 0, None] + JR[:, 1] * r[:, 1, None]).reshape(F, 3 * P)
+        gb = (C.T @ v).reshape(K, 3, P).transpose(2, 0, 1).reshape(P, 3 * K)
         A[:, 5:, 5:] += np.diag(self.reg)  # the prior (*), on C and B
         gf[:, 5:] += self.reg * C
         rb = np.repeat(self.reg, 3)
@@ -294,17 +344,74 @@ class _Fit:
         gb += B.transpose(2, 0, 1).reshape(P, 3 * K) * rb
         return A, Bp, M, C, gf, gb
 
-    def step(self, blocks, lam):
+    def step(self, blocks, lam, eta=CG_TOL):
         """The damped step (Marquardt's scaling): the larger of the frames' and the points'
         block sets is eliminated; the basis keeps sum_p dB_p = 0 (a multiplier)."""
         A, Bp, M, C, gf, gb = blocks
         (F, nf), (P, nb) = gf.shape, gb.shape
-        Ad = A + lam * np.einsum("fii->fi", A)[:, :, None] * np.eye(nf) + 1e-15 * np.eye(nf)
-        Bd = Bp + lam * np.einsum("pii->pi", Bp)[:, :, None] * np.eye(nb) + 1e-15 * np.eye(nb)
+        dA, dB = _scaling(A, Bp)
+        Ad = A + lam * dA[:, :, None] * np.eye(nf) + 1e-15 * np.eye(nf)
+        Bd = Bp + lam * dB[:, :, None] * np.eye(nb) + 1e-15 * np.eye(nb)
         if F * nf < P * nb:
-            Wc = (M[..., None, :] * C[:, None, None, :, None]).reshape(F, P, nf, nb)
+            Wc = M.transpose(0, 2, 1, 3)[..., None, :] * C[:, None, None, :, None]
+            Wc = Wc.reshape(F, P, nf, nb)
             return self._keep_frames(Ad, Bd, Wc, gf, gb)
+        if P * nb >= CG_UNKNOWNS and not self.factorise:
+            out = self._keep_points_cg(Ad, Bd, M, C, gf, gb, eta)
+            if out is not None:
+                return out
+            self.factorise = True  # for the rest of this minimise
         return self._keep_points(Ad, Bd, M, C, gf, gb)
+
+    @staticmethod
+    def _keep_points_cg(Ad, Bd, M, C, gf, gb, eta):
+        """Frames eliminated, the reduced system in the basis solved inexactly: conjugate
+        gradients with each point's block of it as preconditioner, in the centred subspace."""
+        (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
+        Li = np.linalg.inv(np.linalg.cholesky(Ad))
+        N = Li @ M.reshape(F, nf, 3 * P)  # L^-1 M_f
+        Nt = np.ascontiguousarray(np.swapaxes(N, 1, 2))
+        h = (Li @ gf[:, :, None])[..., 0]
+        Nc = np.ascontiguousarray(np.moveaxis(N.reshape(F, nf, P, 3), 3, 1))
+        Q = np.einsum("fcip,fdip->fpcd", Nc, Nc)  # each point's 3 x 3 block of N_f' N_f
+        Gd = (_pairs(C).T @ Q.reshape(F, 9 * P)).reshape(K, K, P, 3, 3)
+        Minv = np.linalg.inv(Bd - Gd.transpose(2, 0, 3, 1, 4).reshape(P, nb, nb))
+        Cc = C[:, :, None]
+
+        def Sv(v):  # the Schur complement times v (P, nb)
+            V = v.reshape(P, K, 3).transpose(0, 2, 1).reshape(3 * P, K)
+            u = Nt @ ((N @ V) @ Cc)  # (F, 3P, 1)
+            G = (C.T @ u[..., 0]).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, nb)
+            return (Bd @ v[:, :, None])[..., 0] - G
+
+        def precondition(r):
+            z = (Minv @ r[:, :, None])[..., 0]
+            return z - z.mean(0)
+
+        u = (Nt @ h[:, :, None])[..., 0]  # (F, 3P)
+        Nh = (C.T @ u).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, nb)
+        r = -gb + Nh
+        r -= r.mean(0)
+        stop = eta * np.sqrt((r * r).sum())
+        d = np.zeros_like(r)
+        z = precondition(r)
+        p, rz = z.copy(), (r * z).sum()
+        for _ in range(CG_MAX_ITER):
+            Sp = Sv(p)
+            Sp -= Sp.mean(0)
+            a = rz / (p * Sp).sum()
+            d += a * p
+            r -= a * Sp
+            if np.sqrt((r * r).sum()) <= stop:
+                break
+            z = precondition(r)
+            rzn = (r * z).sum()
+            p, rz = z + rzn / rz * p, rzn
+        else:
+            return None  # ill-conditioned: the caller factorises
+        D = (C @ d.reshape(P, K, 3)).reshape(P, F, 3).transpose(1, 0, 2).reshape(F, 3 * P, 1)
+        df = -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
+        return df, d
 
     @staticmethod
     def _keep_frames(Ad, Bd, Wc, gf, gb):
@@ -332,7 +439,7 @@ class _Fit:
         N_f) with N_f = L_f^-1 M_f (its Kronecker form for a large K); the centring by nu."""
         (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
         Li = np.linalg.inv(np.linalg.cholesky(Ad))
-        N = Li @ M.transpose(0, 2, 1, 3).reshape(F, nf, 3 * P)  # L^-1 M_f
+        N = Li @ M.reshape(F, nf, 3 * P)  # L^-1 M_f
         h = (Li @ gf[:, :, None])[..., 0]  # L^-1 g_f
         n3 = 3 * P
         if K * K >= 2 * nf:  # the Kronecker form costs fewer flops than the full product
@@ -359,16 +466,24 @@ class _Fit:
         df = -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
         return df, db
 
-    def minimise(self, R, ab, C, B, st):
+    def minimise(self, R, ab, C, B, st, known=(), tol=None):
         """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
-        actual to the predicted decrease (Nielsen 1999): the final state and the history."""
+        actual to the predicted decrease (Nielsen 1999): the final state, the history and
+        whether it converged; ``None`` for the last where the fit came within ``MERGE_TOL``
+        of an answer in ``known`` (camera points, :func:`_camera_points`), whose minimum
+        it is reaching."""
         E, data = self.cost(R, ab, C, B)
+        self.factorise = False
         hist = {"cost": [E], "data_term": [data], "damping": [np.nan]}
         lam, nu, converged, K = 1e-3, 2.0, False, C.shape[1]
         for _ in range(st.max_iter):
+            # the inner solve's tolerance falls with E (superlinear near an exact fit)
+            eta = min(CG_TOL, np.sqrt(E / hist["cost"][0]))
             blocks = self.normal_equations(R, ab, C, B)
+            A, Bp, _, _, gf, gb = blocks
+            dA, dB = _scaling(A, Bp)
             while True:
-                df, db = self.step(blocks, lam)
+                df, db = self.step(blocks, lam, eta)
                 new = (
                     _rodrigues(df[:, :3]) @ R,
                     ab + df[:, 3:5],
@@ -376,28 +491,45 @@ class _Fit:
                     B + db.reshape(-1, K, 3).transpose(1, 2, 0),
                 )
                 En, dn = self.cost(*new)
+                # the model's decrease (-g'd + lam d'Dd) / 2 (also for the conjugate
+                # gradients' step: its residual is orthogonal to it)
+                dD = (dA * df**2).sum() + (dB * db**2).sum()
+                pred = 0.5 * (lam * dD - (gf * df).sum() - (gb * db).sum())
                 if En < E:
                     break
+                if pred <= st.tol * E:  # more damping cannot reach a decrease that counts
+                    return (R, ab, C, B), hist, True
                 lam, nu = lam * nu, 2 * nu
                 if lam > 1e12:  # no step lowers E: a stationary point
                     return (R, ab, C, B), hist, True
-            A, Bp, _, _, gf, gb = blocks  # the model's decrease: (-g'd + lam d'Dd) / 2
-            dD = np.einsum("fii->fi", A) * df**2, np.einsum("pii->pi", Bp) * db**2
-            pred = 0.5 * (lam * (dD[0].sum() + dD[1].sum()) - (gf * df).sum() - (gb * db).sum())
-            rho = (E - En) / pred if pred > 0 else 0.0
+            rho, lam_step = ((E - En) / pred if pred > 0 else 0.0), lam
             lam, nu = max(lam * max(1 / 3, 1 - (2 * rho - 1) ** 3), 1e-12), 2.0
             R, ab, C, B = new
             Cb, Bb = _balanced(C, B)
             Eb, db_ = self.cost(R, ab, Cb, Bb)
             if Eb <= En:  # (not at rounding level, where balancing may add to E)
                 C, B, En, dn = Cb, Bb, Eb, db_
-            converged = E - En <= st.tol * E
+            # converged: a decrease below tol E by a step close to Gauss-Newton's (a heavily
+            # damped step's small decrease is a slow phase, as near a saddle)
+            # ; or E at rounding level
+            converged = E - En <= (tol or st.tol) * E and lam_step <= MAX_CONVERGED_DAMPING
+            converged = converged or En <= ROUNDING_E * self.spread
             E = En
             for k, v in (("cost", E), ("data_term", dn), ("damping", lam)):
                 hist[k].append(v)
             if converged:
                 break
+            if known and _near((R, ab, C, B), known):
+                return (R, ab, C, B), hist, None
         return (R, ab, C, B), hist, converged
+
+
+def _scaling(A, Bp):
+    """Marquardt's scaling: the diagonals of the frames' and the points' blocks, the
+    coefficients' and the basis' entries at least ``DAMPING_FLOOR`` times their mean."""
+    dA, dB = np.einsum("fii->fi", A), np.einsum("pii->pi", Bp)
+    dA[:, 5:] = np.maximum(dA[:, 5:], DAMPING_FLOOR * dA[:, 5:].mean())
+    return dA, np.maximum(dB, DAMPING_FLOOR * dB.mean())
 
 
 def _pairs(C):
@@ -461,20 +593,62 @@ def _orders(fit, state):
     return [s for _, s in out if np.isfinite(fit.cost(*s)[0])]
 
 
-def _fit_orders(fit, state, st, say=None, what="fit"):
-    """Minimise (*) from ``state``; where another depth order lowers a frame's residual at
-    the answer, flip those frames and minimise again (at most ``MAX_FLIP_ROUNDS`` times):
-    the order is discrete, the fit continuous. ``say(message)``: progress."""
-    state, hist, converged = fit.minimise(*state, st)
-    n = len(hist["cost"]) - 1
-    for _ in range(MAX_FLIP_ROUNDS):
-        flip = np.logical_and(*_depth_orders(fit, *state))
-        if not flip.any():
-            break
-        state, hist, converged = fit.minimise(*_flip(state, flip), st)
+def _fit_orders(fit, state, st, say=None, what="fit", known=()):
+    """Minimise (*) from ``state`` to ``LOOSE_TOL``; where another depth order lowers a
+    frame's residual at the answer, flip those frames and minimise again (at most
+    ``MAX_FLIP_ROUNDS`` times): the order is discrete, the fit continuous. ``say(message)``:
+    progress. Returns (state, history, converged), or None where the fit came near an
+    answer in ``known`` (:meth:`_Fit.minimise`); :func:`_polish` takes it on to ``st.tol``."""
+    loose = max(st.tol, LOOSE_TOL)
+    n = 0
+    for round_ in range(MAX_FLIP_ROUNDS + 1):
+        state, hist, converged = fit.minimise(*state, st, known, tol=loose)
         n += len(hist["cost"]) - 1
+        if converged is None:
+            break
+        flip = np.logical_and(*_depth_orders(fit, *state))
+        if not flip.any() or round_ == MAX_FLIP_ROUNDS:
+            break
+        state = _flip(state, flip)
+    out = None if converged is None else (state, hist, converged)
     if say is not None:
-        say(f"perspective {what}: {n} iterations, E {hist['cost'][-1]:.4g}")
+        end = "near an earlier answer" if out is None else f"E {hist['cost'][-1]:.4g}"
+        say(f"perspective {what}: {n} iterations, {end}")
+    return out
+
+
+def _fits(fit, starts, st, say=None):
+    """:func:`_fit_orders` from each of ``starts`` (name -> (what, state)); a fit that comes
+    near an earlier one's answer stops there and is left out: name -> (state, history,
+    converged)."""
+    out, known = {}, []
+    for name, (what, s0) in starts.items():
+        r = _fit_orders(fit, s0, st, say, what, known)
+        if r is not None:
+            out[name] = r
+            known.append(_camera_points(r[0]))
+    return out
+
+
+def _polished(fit, fits, st, say=None, what="fit from"):
+    """``fits`` (name -> fit of :func:`_fit_orders`) with those whose E is within
+    ``POLISH_MARGIN`` of the lowest (within ``MAX_DEPTH_RATIO``) taken on to ``st.tol``."""
+    E0 = _best(list(fits.values()))[1]["cost"][-1]
+    out = dict(fits)
+    for name, f in fits.items():
+        if f[1]["cost"][-1] <= (1 + POLISH_MARGIN) * E0:
+            out[name] = _polish(fit, f, st, say, f"{what} {name}")
+    return out
+
+
+def _polish(fit, out, st, say=None, what="fit"):
+    """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history."""
+    state, hist, _ = out
+    state, more, converged = fit.minimise(*state, st)
+    hist = {k: hist[k] + more[k][1:] for k in hist}
+    if say is not None:
+        n, E = len(more["cost"]) - 1, hist["cost"][-1]
+        say(f"perspective {what} to tol: {n} iterations, E {E:.4g}")
     return state, hist, converged
 
 
@@ -488,6 +662,21 @@ def _best(fits):
     """The fit of the lowest E among those within ``MAX_DEPTH_RATIO`` (all, if none is)."""
     within = [f for f in fits if depth_ratio(*f[0]) <= MAX_DEPTH_RATIO] or fits
     return min(within, key=lambda f: f[1]["cost"][-1])
+
+
+def _camera_points(state):
+    """(F, 3, P): the points in each camera of an answer of (*)."""
+    R, ab, C, B = state
+    Y = R @ (C @ B.reshape(len(B), -1)).reshape(len(C), 3, -1)
+    Y[:, :2] += ab[:, :, None]
+    Y[:, 2] += 1.0
+    return Y
+
+
+def _near(state, known):
+    """Is ``state`` within ``MERGE_TOL`` of one of the camera points ``known``?"""
+    Y = _camera_points(state)
+    return any(np.linalg.norm(Y - Yk) <= MERGE_TOL * np.linalg.norm(Yk) for Yk in known)
 
 
 def _noise(fit, state, K):
@@ -514,10 +703,10 @@ def refine_perspective(
 ):
     """Refine orthographic answers under the pinhole model (*) (module docstring).
 
-    The prior's balance comes from W: the fit without prior from the direct start gives the
-    noise level (its residual per degree of freedom), and mu is the bilinear shape stage's
-    rule of that noise (:class:`nrsfm.BilinearSettings`: ``mu_factor``, ``mu_noise``); on
-    exact data both are zero and the answer is exact.
+    The prior's balance comes from W: the best fit without prior gives the noise level (its
+    residual per degree of freedom), and mu is the bilinear shape stage's rule of that noise
+    (:class:`nrsfm.BilinearSettings`: ``mu_factor``, ``mu_noise``); on exact data both are
+    zero and the answer is exact.
 
     Parameters
     ----------
@@ -560,30 +749,13 @@ def refine_perspective(
             "the orthographic answer puts points behind the camera in either depth order: "
             "check the intrinsics (the focal length in pixels, the principal point)"
         )
-    fits = [
-        _fit_orders(free, s0, st, progress, f"fit without prior, start {i + 1}")
-        for i, s0 in enumerate(starts)
-    ]
-    best_free = min(fits, key=lambda f: f[1]["cost"][-1])  # the best fit measures the noise
-    noise = _noise(free, best_free[0], K)
-    bal = BilinearSettings()
-    mu = max(
-        bal.mu_factor * noise * (np.sqrt(F) + np.sqrt(3 * P)),
-        bal.mu_noise * noise**2 * (F + 2 * P) / max(float(sigma_1 or 0.0), 1e-300),
-    )
-    reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
-    fit = _Fit(xs, m, reg)
-    runs = {
-        ("direct", "direct 2", "direct 3")[i]: _fit_orders(
-            fit, s0, st, progress, f"fit from the orthographic start {i + 1}"
-        )
-        for i, s0 in enumerate(starts)
-    }
+    names = ("direct", "direct 2", "direct 3")
+    todo = {names[i]: (f"fit without prior, start {i + 1}", s0) for i, s0 in enumerate(starts)}
     one = _Fit(xs, m, np.zeros(1))
     starts_1 = [] if rank_one is None or K == 1 else _orders(one, _start(*rank_one, 1))
     if starts_1:  # the rank-1 fit, K - 1 small columns added (none: points behind)
-        fits_1 = [_fit_orders(one, s1, st, progress, "rank-1 fit") for s1 in starts_1]
-        R1, ab1, C1, B1 = _best(fits_1)[0]
+        fits_1 = _fits(one, {i: ("rank-1 fit", s1) for i, s1 in enumerate(starts_1)}, st, progress)
+        R1, ab1, C1, B1 = _best(list(fits_1.values()))[0]
         _, Bd = _factors(X0, K)  # the new columns: the rank-K answer's directions, small
         Bn = (
             _SMALL
@@ -593,10 +765,30 @@ def refine_perspective(
         )
         Cn = np.full((F, K - 1), _SMALL * np.linalg.norm(C1) / np.sqrt(F))
         s0 = (R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn]))
-        runs["continuation"] = _fit_orders(fit, s0, st, progress, "fit from the rank-1 fit")
+        todo["continuation"] = ("fit without prior from the rank-1 fit", s0)
+    fits = _fits(free, todo, st, progress)  # the distinct minima without prior
+    fits = _polished(free, fits, st, progress, "fit without prior from")
+    best_free = min(fits.values(), key=lambda f: f[1]["cost"][-1])
+    noise = _noise(free, best_free[0], K)  # the best fit measures it
+    bal = BilinearSettings()
+    mu = max(
+        bal.mu_factor * noise * (np.sqrt(F) + np.sqrt(3 * P)),
+        bal.mu_noise * noise**2 * (F + 2 * P) / max(float(sigma_1 or 0.0), 1e-300),
+    )
+    reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
+    fit = _Fit(xs, m, reg)
+    # the prior from each distinct minimum without it (the best ones on to st.tol)
+    runs = _fits(
+        fit, {k: (f"fit with the prior from {k}", v[0]) for k, v in fits.items()}, st, progress
+    )
+    runs = _polished(fit, runs, st, progress, "fit with the prior from")
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
     best = next(k for k, v in runs.items() if v is _best(list(runs.values())))  # first: tie
     (R, ab, C, B), hist, converged = runs[best]
+    # the answer's path: its fit without prior (in its last depth orders), then the prior's
+    prior = np.r_[np.zeros(len(fits[best][1]["cost"])), np.ones(len(hist["cost"]) - 1)]
+    hist = {k: fits[best][1][k] + hist[k][1:] for k in hist}
+    hist["prior"] = prior
     S = np.einsum("fk,kcp->fcp", C, B)
     t = np.column_stack([ab, np.ones(F)])
     u = _pixels(xs, A)
