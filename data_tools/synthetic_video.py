@@ -1,5 +1,5 @@
 """Synthetic videos with ground truth: a textured, deforming surface under a moving
-orthographic camera, rendered with OpenCV.
+orthographic or pinhole camera, rendered with OpenCV.
 
 The surface is a triangle mesh over the parameter square ``(u, v) in [0, 1]^2`` whose
 vertices move with a low-rank deformation (``X_f = B_0 + sum_k c_fk B_k``, the shape model of
@@ -9,6 +9,13 @@ triangle's affine map (exact for an orthographic view of a planar triangle) and 
 texture with ``cv2.remap``. A tracked point is located on the mesh in its first frame
 (triangle and barycentric coordinates); its true 3D position in every frame is then the
 same barycentric combination of the moved vertices, exactly what was rendered.
+
+With a pinhole camera (``make_video(..., camera=PerspectiveCamera(...))``) a triangle's image
+is still a triangle (the id buffer is exact) but the map from pixels to the triangle is no
+longer affine: the image barycentric coordinates ``b_i`` are corrected to the triangle's own
+(perspective-correct) ``l_i = (b_i / z_i) / sum_j (b_j / z_j)``, with ``z_i`` the vertices'
+depths, for the texture lookup and for locating tracks alike, so that the ground truth is again
+exactly what was rendered.
 
 Surfaces: ``"sheet"``, a bent waving flag (a travelling wave, rank 2, and a slow twist on top
 of the rest shape),
@@ -24,6 +31,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from nrsfm.sequence import Sequence
+
+from .synthetic import PerspectiveCamera
 
 SURFACES = ("sheet", "face")
 
@@ -164,16 +173,24 @@ class SyntheticVideo:
     rotations : (F, 3, 3) ndarray
         World-to-camera rotations.
     pixel_scale : float
-        Pixels per world unit (orthographic camera).
+        Pixels per world unit (orthographic camera); with a pinhole camera, ``focal /
+        depth``: the pixels per world unit at the world origin's depth (nominal only).
     offsets : (F, 2) ndarray
-        Image position of the world origin per frame: ``pixel = s (R_f X)[:2] + offset_f``.
+        Image position of the world origin per frame: ``pixel = s (R_f X)[:2] + offset_f``
+        (orthographic camera).
     id0 : (H, W) int32 ndarray
         Triangle index + 1 visible at each pixel of frame 0 (0: background).
     affine0 : (T, 3, 3) ndarray
-        Per triangle, the map from homogeneous pixel (x, y, 1) in frame 0 to its barycentric
-        coordinates.
+        Per triangle, the map from homogeneous pixel (x, y, 1) in frame 0 to its (image)
+        barycentric coordinates.
     extra : dict
-        ``basis`` (K, 3, V), ``coefficients`` (F, K), ``seed``.
+        ``basis`` (K, 3, V), ``coefficients`` (F, K), ``seed``; with a pinhole camera also
+        ``intrinsics`` (3, 3) and ``depth``.
+    camera : PerspectiveCamera or None
+        None: orthographic. Else the pinhole camera the frames were rendered through (its
+        principal point the one used); ``pixel = camera.project(R_f X + t_f)``.
+    translations : (F, 3) ndarray or None
+        With a pinhole camera, the world-to-camera translations ``t_f``.
     """
 
     frames: np.ndarray
@@ -187,16 +204,41 @@ class SyntheticVideo:
     id0: np.ndarray
     affine0: np.ndarray
     extra: dict = field(default_factory=dict)
+    camera: PerspectiveCamera | None = None
+    translations: np.ndarray | None = None
 
     @property
     def n_frames(self):
         """Number of frames (also without ``frames``)."""
         return self.vertices.shape[0]
 
+    @property
+    def intrinsics(self):
+        """(3, 3) ndarray: the pinhole camera's matrix; None for an orthographic video."""
+        return None if self.camera is None else self.camera.intrinsics
+
+    def to_camera(self, X_world):
+        """Camera-frame points (F, 3, P) of world points (F, 3, P): ``R_f X`` (orthographic),
+        ``R_f X + t_f`` (pinhole; metric, depth along z)."""
+        cam = self.rotations @ X_world
+        if self.camera is not None:
+            cam = cam + self.translations[:, :, None]
+        return cam
+
     def project(self, X_world):
         """Pixel positions (F, 2, P) of world points (F, 3, P)."""
+        if self.camera is not None:
+            return self.camera.project(self.to_camera(X_world))
         cam = self.rotations @ X_world
         return self.pixel_scale * cam[:, :2] + self.offsets[:, :, None]
+
+    def _frame_view(self, frame):
+        """Pixels (V, 2) and camera-frame depths (V,) of the vertices in one frame."""
+        cam = self.rotations[frame] @ self.vertices[frame]
+        if self.camera is not None:
+            cam = cam + self.translations[frame][:, None]
+            return self.camera.project(cam[None])[0].T, cam[2]
+        return (self.pixel_scale * cam[:2] + self.offsets[frame][:, None]).T, cam[2]
 
     def locate(self, points, frame=0):
         """Mesh location of pixel positions in a frame.
@@ -214,15 +256,16 @@ class SyntheticVideo:
         triangle : (P,) int ndarray
             Triangle index, -1 where the pixel shows the background.
         bary : (P, 3) ndarray
-            Barycentric coordinates in that triangle (NaN where ``triangle == -1``).
+            Barycentric coordinates in that triangle (NaN where ``triangle == -1``); with a
+            pinhole camera the triangle's own (perspective-correct) ones, so that
+            :meth:`world_points` projects back onto ``points``.
         """
         p = np.asarray(points, float).reshape(-1, 2)
         if frame == 0:
             ids, affine = self.id0, self.affine0
         else:
-            cam = self.rotations[frame] @ self.vertices[frame]
-            pix = (self.pixel_scale * cam[:2] + self.offsets[frame][:, None]).T
-            ids, affine = _id_buffer(self.triangles, pix, cam[2], self.id0.shape)
+            pix, depth = self._frame_view(frame)
+            ids, affine = _id_buffer(self.triangles, pix, depth, self.id0.shape)
         H, W = ids.shape
         xi = np.clip(np.rint(np.nan_to_num(p[:, 0])).astype(int), 0, W - 1)
         yi = np.clip(np.rint(np.nan_to_num(p[:, 1])).astype(int), 0, H - 1)
@@ -238,6 +281,9 @@ class SyntheticVideo:
         bary = np.full((len(p), 3), np.nan)
         ok = tri >= 0
         bary[ok] = np.einsum("pij,pj->pi", affine[tri[ok]], hom[ok])
+        if self.camera is not None:
+            depth = self._frame_view(frame)[1]
+            bary[ok] = _perspective_correct(bary[ok], 1.0 / depth[self.triangles[tri[ok]]])
         return tri, bary
 
     def world_points(self, triangle, bary):
@@ -262,8 +308,9 @@ class SyntheticVideo:
         -------
         dict
             ``world`` (F, 3, P) true 3D in the world frame, ``camera`` (F, 3, P) in the
-            camera frame (``R_f X``), ``pixels`` (F, 2, P) true image positions, ``valid``
-            (P,) bool: the track started on the surface (not the background).
+            camera frame (``R_f X``; with a pinhole camera ``R_f X + t_f``, metric),
+            ``pixels`` (F, 2, P) true image positions, ``valid`` (P,) bool: the track
+            started on the surface (not the background).
         """
         tracks = np.asarray(getattr(tracks, "tracks", tracks), float)
         seen = np.isfinite(tracks).all(axis=1)  # (F, P)
@@ -275,7 +322,7 @@ class SyntheticVideo:
             tri[cols], bary[cols] = self.locate(tracks[f][:, cols].T, frame=int(f))
         world = self.world_points(tri, bary)
         return dict(
-            world=world, camera=self.rotations @ world, pixels=self.project(world), valid=tri >= 0
+            world=world, camera=self.to_camera(world), pixels=self.project(world), valid=tri >= 0
         )
 
     def sequence(self, tracks, name=None):
@@ -283,16 +330,29 @@ class SyntheticVideo:
 
         ``tracks``: (F, 2, P) array or ``Tracks``, as for :meth:`ground_truth`.
 
-        ``W`` holds the row-centred tracks of the points with ground truth (NaN kept);
-        ``shapes`` the true camera-frame 3D, scaled to pixels and centred per frame.
+        Orthographic camera: ``W`` holds the row-centred tracks of the points with ground
+        truth (NaN kept); ``shapes`` the true camera-frame 3D, scaled to pixels and centred
+        per frame.
+
+        Pinhole camera: ``W`` holds the tracks in pixels as they are (not centred: the
+        perspective refinement needs them so); ``shapes`` the true camera-frame 3D in world
+        units (metric, not scaled to pixels), centred per frame, ``world_shapes`` the world
+        3D; ``extra["intrinsics"]`` the camera matrix, so that
+        ``nrsfm.reconstruct(seq.W, K, intrinsics=seq.extra["intrinsics"])`` runs on it.
         """
         gt = self.ground_truth(tracks)
         ok = gt["valid"]
         F = self.n_frames
         T = np.asarray(getattr(tracks, "tracks", tracks), float)[:, :, ok]
         W = T.reshape(2 * F, -1)
-        W = W - np.nanmean(W, axis=1, keepdims=True)
-        cam = self.pixel_scale * gt["camera"][:, :, ok]
+        extra = dict(valid=ok)
+        if self.camera is None:
+            W = W - np.nanmean(W, axis=1, keepdims=True)
+            scale = self.pixel_scale
+        else:
+            scale = 1.0
+            extra.update(intrinsics=self.intrinsics, translations=self.translations)
+        cam = scale * gt["camera"][:, :, ok]
         cam = cam - cam.mean(axis=2, keepdims=True)
         return Sequence(
             name=name or f"video-{self.surface}",
@@ -300,9 +360,16 @@ class SyntheticVideo:
             shapes=cam,
             rotations=self.rotations,
             K=None,
-            world_shapes=self.pixel_scale * gt["world"][:, :, ok],
-            extra=dict(valid=ok),
+            world_shapes=scale * gt["world"][:, :, ok],
+            extra=extra,
         )
+
+
+def _perspective_correct(bary, zinv):
+    """A triangle's own barycentric coordinates (P, 3) from the image ones (P, 3), given its
+    vertices' inverse depths (P, 3): ``(b_i / z_i) / sum_j (b_j / z_j)``."""
+    w = bary * zinv
+    return w / w.sum(axis=1, keepdims=True)
 
 
 def _id_buffer(tris, pix, depth, size):
@@ -326,8 +393,10 @@ def _id_buffer(tris, pix, depth, size):
     return ids, affine
 
 
-def _render(texture, uv_pix, tris, pix, depth, size, background):
-    """One frame: id buffer, per-triangle affine maps, textured image."""
+def _render(texture, uv_pix, tris, pix, depth, size, background, pinhole=False):
+    """One frame: id buffer, per-triangle affine maps, textured image (with ``pinhole``,
+    the texture coordinates interpolated perspective-correctly; ``depth`` then the vertices'
+    positive depths)."""
     import cv2
 
     H, W = size
@@ -336,6 +405,8 @@ def _render(texture, uv_pix, tris, pix, depth, size, background):
     tri = ids[yy, xx] - 1
     hom = np.stack([xx, yy, np.ones_like(xx)], axis=1).astype(float)
     bary = np.einsum("pij,pj->pi", affine[tri], hom)
+    if pinhole:
+        bary = _perspective_correct(bary, 1.0 / depth[tris[tri]])
     tex_xy = np.einsum("pj,pjk->pk", bary, uv_pix[tris[tri]])
     map_x = np.full((H, W), -1.0, np.float32)
     map_y = np.full((H, W), -1.0, np.float32)
@@ -361,6 +432,7 @@ def make_video(
     noise=0.0,
     texture_size=None,
     fill=0.7,
+    camera=None,
 ):
     """Render a synthetic video of a deforming textured surface with ground truth.
 
@@ -383,7 +455,19 @@ def make_video(
         Side of the square texture in pixels; default about the surface's size in the
         image (a texture much finer than the pixels aliases, which biases the trackers).
     fill : float
-        Fraction of the image's smaller side that the surface's height spans.
+        Fraction of the image's smaller side that the surface's height spans (orthographic
+        camera; also sets the default ``texture_size``).
+    camera : PerspectiveCamera, optional
+        None: an orthographic camera. A :class:`~data_tools.PerspectiveCamera`: a pinhole
+        camera. Each frame's world vertices are rotated as without it (the same camera
+        path), placed ``camera.distance`` times the surface's radius (the largest distance
+        of a vertex from the world origin, about which the surface turns, over all frames)
+        in front of the camera, and projected with ``camera.focal``; the orthographic
+        video's image drift becomes a lateral translation of the same pixels at that depth.
+        The principal point is the camera's when it lies inside the image, else the image
+        centre (``(W / 2, H / 2)``); the video's ``camera`` holds the one used. The focal
+        length is not adapted to the image: ``focal = 800 * min(H, W) / 480`` frames the
+        sheet about as the orthographic video does.
 
     Returns
     -------
@@ -398,6 +482,8 @@ def make_video(
         raise ValueError(f"size must be at least 32 x 32 pixels; got {size}")
     if int(grid) < 3:
         raise ValueError(f"grid must be at least 3; got {grid}")
+    if camera is not None and not isinstance(camera, PerspectiveCamera):
+        raise TypeError(f"camera must be a PerspectiveCamera or None; got {type(camera).__name__}")
     F = int(n_frames)
     rng = np.random.default_rng(seed)
     s = fill * min(H, W) / 1.5
@@ -420,14 +506,33 @@ def make_video(
         axis=1,
     )
     offsets = np.array([W / 2, H / 2]) + drift
+    translations, extra = None, {}
+    if camera is not None:
+        cx, cy = (float(c) for c in camera.principal)
+        if not (0 < cx < W and 0 < cy < H):
+            cx, cy = W / 2, H / 2
+        camera = PerspectiveCamera(camera.distance, float(camera.focal), (cx, cy))
+        depth = camera.distance * float(np.sqrt(np.sum(vertices**2, axis=1)).max())
+        translations = np.zeros((F, 3))
+        translations[:, :2] = drift * depth / camera.focal
+        translations[:, 2] = depth
+        offsets = camera.project(translations[:, :, None])[:, :, 0]  # the world origin
+        s = camera.focal / depth
+        extra = dict(intrinsics=camera.intrinsics, depth=depth)
     uv_pix = uv * (texture_size - 1)
     background = (60, 60, 60)
     frames = np.empty((F, H, W, 3), np.uint8)
     id0 = affine0 = None
     for f in range(F):
         cam = R[f] @ vertices[f]
-        pix = (s * cam[:2] + offsets[f][:, None]).T
-        img, ids, affine = _render(texture, uv_pix, tris, pix, cam[2], (H, W), background)
+        if camera is None:
+            pix = (s * cam[:2] + offsets[f][:, None]).T
+        else:
+            cam = cam + translations[f][:, None]
+            pix = camera.project(cam[None])[0].T
+        img, ids, affine = _render(
+            texture, uv_pix, tris, pix, cam[2], (H, W), background, pinhole=camera is not None
+        )
         if noise:
             img = np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
         frames[f] = img
@@ -444,7 +549,9 @@ def make_video(
         offsets=offsets,
         id0=id0,
         affine0=affine0,
-        extra=dict(basis=basis, coefficients=coeff, seed=seed, noise=noise),
+        extra=dict(basis=basis, coefficients=coeff, seed=seed, noise=noise, **extra),
+        camera=camera,
+        translations=translations,
     )
 
 

@@ -3,8 +3,9 @@ its tracks: the route from :func:`data_tools.make_video` to ``nrsfm video`` and 
 
 :func:`write_video` writes the frames as PNG images (lossless: ``nrsfm video FOLDER`` tracks
 exactly the frames :func:`~data_tools.make_video` rendered) and :func:`save_ground_truth`
-the mesh, its motion and the camera, from which the true 3D of *any* track can be found
-(:meth:`SyntheticVideo.ground_truth`: a track is located on the mesh in its first frame).
+the mesh, its motion and the camera (orthographic or pinhole), from which the true 3D of
+*any* track can be found (:meth:`SyntheticVideo.ground_truth`: a track is located on the
+mesh in its first frame).
 :func:`load_ground_truth` reads it back as a :class:`SyntheticVideo` without frames, and
 :func:`score_tracks` scores a reconstruction of tracks against it, on the tracks the
 reconstruction used that started on the surface (the others have no ground truth).
@@ -18,6 +19,7 @@ import numpy as np
 
 from nrsfm.io import load_npz, save_npz
 
+from .synthetic import PerspectiveCamera
 from .synthetic_video import SyntheticVideo
 
 __all__ = [
@@ -91,6 +93,10 @@ def save_ground_truth(video, path):
     path : Path
     """
     arrays = {k: np.asarray(getattr(video, k)) for k in _ARRAYS}
+    if video.camera is not None:  # a pinhole camera: (distance, focal, cx, cy), t_f
+        c = video.camera
+        arrays["pinhole"] = np.array([c.distance, c.focal, *c.principal], float)
+        arrays["translations"] = np.asarray(video.translations, float)
     extra = {
         f"extra_{k}": np.asarray(v)
         for k, v in video.extra.items()
@@ -150,6 +156,22 @@ def load_ground_truth(path):
             f"{data['id0'].shape})"
         )
     extra = {k[len("extra_") :]: v for k, v in data.items() if k.startswith("extra_")}
+    camera = translations = None
+    if "pinhole" in data or "translations" in data:
+        pin, translations = data.get("pinhole"), data.get("translations")
+        if (
+            pin is None
+            or translations is None
+            or pin.shape != (4,)
+            or translations.shape != (V.shape[0], 3)
+        ):
+            raise ValueError(
+                f"ground truth {path}: a pinhole camera needs 'pinhole' (4,) and "
+                f"'translations' ({V.shape[0]}, 3); found "
+                f"{None if pin is None else pin.shape} and "
+                f"{None if translations is None else translations.shape}"
+            )
+        camera = PerspectiveCamera(float(pin[0]), float(pin[1]), (float(pin[2]), float(pin[3])))
     return SyntheticVideo(
         frames=None,
         surface=str(data["surface"]),
@@ -162,6 +184,8 @@ def load_ground_truth(path):
         id0=data["id0"],
         affine0=data["affine0"],
         extra=extra,
+        camera=camera,
+        translations=translations,
     )
 
 
@@ -209,8 +233,11 @@ def score_tracks(truth, tracks, vr):
             "truth (started on the surface); at least 3 are needed"
         )
     X = vr.result.shapes[:, :, gt["valid"][cols]]
-    G = truth.pixel_scale * gt["camera"][:, :, scored]
-    world = truth.rotations.transpose(0, 2, 1) @ G  # as Reconstruction.errors
+    if truth.camera is None:
+        G = truth.pixel_scale * gt["camera"][:, :, scored]
+        world = truth.rotations.transpose(0, 2, 1) @ G  # as Reconstruction.errors
+    else:  # metric camera-frame points; the world frame without the translations
+        G, world = gt["camera"][:, :, scored], gt["world"][:, :, scored]
     return dict(
         n_tracks=int(T.shape[2]),
         n_used=int(cols.size),

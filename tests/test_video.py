@@ -555,3 +555,84 @@ def test_video_recording_of_a_perspective_run_shows_the_cameras(
     assert order > _column(data["/video/tracks"]["temporal"], "Points2D:draw_order")[0][0]
     rms = f"{p.reprojection_before:.4g} px (orthographic start) -> {p.reprojection_after:.4g} px"
     assert f"reprojection RMS {rms}; start {p.start}" in report
+
+
+# --------------------------------------------------------------------------- pinhole video
+
+
+@pytest.fixture(scope="module")
+def pinhole_sheet():
+    """A small sheet video through a pinhole camera 3 radii away (principal point: the
+    image centre, the default (320, 240) lying outside 160 x 120)."""
+    import data_tools as dt
+
+    cam = dt.PerspectiveCamera(distance=3.0, focal=200.0)
+    return make_video("sheet", n_frames=20, size=(120, 160), grid=13, seed=4, camera=cam)
+
+
+def test_pinhole_video_ground_truth_is_what_was_rendered(pinhole_sheet):
+    """Points located by pixel (frame 0, or a later frame rasterised again) project back
+    onto their pixels: the perspective-correct barycentric coordinates."""
+    v = pinhole_sheet
+    assert v.camera.principal == (80.0, 60.0) and v.camera.focal == 200.0
+    np.testing.assert_array_equal(v.intrinsics, v.extra["intrinsics"])
+    np.testing.assert_allclose(v.translations[:, 2], v.extra["depth"])
+    radius = np.sqrt(np.sum(v.vertices**2, axis=1)).max()
+    np.testing.assert_allclose(v.extra["depth"], 3.0 * radius)
+    assert 0.2 < (v.id0 > 0).mean() < 0.9
+    rng = np.random.default_rng(0)
+    ys, xs = np.nonzero(v.id0)
+    pick = rng.choice(len(xs), 300, replace=False)
+    p = np.stack([xs[pick], ys[pick]], 1) + rng.uniform(-0.45, 0.45, (300, 2))
+    tri, bary = v.locate(p)
+    assert (tri >= 0).all()
+    np.testing.assert_allclose(bary.sum(axis=1), 1.0)
+    assert np.abs(v.project(v.world_points(tri, bary))[0].T - p).max() < 1e-6
+    # in frame 7: the pixels of surface points seen there
+    q = v.project(v.world_points(tri, bary))[7].T
+    tri7, bary7 = v.locate(q, frame=7)
+    ok = tri7 >= 0
+    assert ok.mean() > 0.9
+    assert np.abs(v.project(v.world_points(tri7, bary7))[7].T[ok] - q[ok]).max() < 1e-6
+    # the camera-frame truth is R_f X + t_f, in front of the camera
+    gt = v.ground_truth(v.project(v.vertices)[:, :, ::7])
+    assert gt["valid"].mean() > 0.9 and np.nanmin(gt["camera"][:, 2]) > 0
+
+
+def test_pinhole_video_exact_tracks_reconstruct_with_the_intrinsics(pinhole_sheet):
+    """The true pixels of 40 surface points: the perspective refinement with the true
+    intrinsics recovers them at the sheet's K = 4 (rest shape, the travelling wave's two
+    modes, the twist); the orthographic pipeline on the same tracks cannot."""
+    v = pinhole_sheet
+    ys, xs = np.nonzero(v.id0)
+    pick = np.linspace(0, len(xs) - 1, 40).astype(int)
+    p = np.stack([xs[pick], ys[pick]], 1).astype(float)
+    tracks = v.project(v.world_points(*v.locate(p)))
+    seq = v.sequence(tracks)
+    assert v.extra["basis"].shape[0] == 4 and seq.W.shape == (40, 40)
+    np.testing.assert_array_equal(seq.W, tracks.reshape(40, 40))  # pixels, not centred
+    np.testing.assert_allclose(seq.shapes.mean(axis=2), 0.0, atol=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", nrsfm.NRSfMWarning)  # the orthographic fit's flags
+        res = nrsfm.reconstruct(seq.W, 4, intrinsics=seq.extra["intrinsics"])
+        ortho = nrsfm.reconstruct(seq.W - seq.W.mean(axis=1, keepdims=True), 4)
+    assert res.errors(seq.shapes)["e3d"] < 1e-4
+    assert res.perspective.reprojection_after < 1e-4
+    assert ortho.errors(seq.shapes)["e3d"] > 0.1
+
+
+def test_orthographic_video_unchanged():
+    """The orthographic path renders the same frames as before the pinhole camera came
+    (hashes of this OpenCV build's output)."""
+    import hashlib
+
+    for surface, digest in (("sheet", "3d05404cd606b6d5"), ("face", "f6c7212f6ea7f6d1")):
+        v = make_video(surface, n_frames=6, size=(64, 80), grid=9, seed=5, noise=2.0)
+        assert hashlib.sha256(v.frames.tobytes()).hexdigest()[:16] == digest
+        assert v.camera is None and v.translations is None and v.intrinsics is None
+        assert (
+            "intrinsics" not in v.extra
+            and "intrinsics" not in v.sequence(v.project(v.vertices)[:, :, :5]).extra
+        )
+    with pytest.raises(TypeError, match="PerspectiveCamera"):
+        make_video("sheet", n_frames=2, camera=(800, 320, 240))

@@ -137,3 +137,22 @@ def test_video_only_flags_need_video(capsys):
     with pytest.raises(SystemExit):
         main(["demo", "--video", "--size", "64by64"])
     assert "expected HEIGHTxWIDTH" in capsys.readouterr().err
+
+
+def test_pinhole_ground_truth_reads_back_with_its_camera(tmp_path):
+    cam = dt.PerspectiveCamera(distance=3.0, focal=120.0)
+    video = dt.make_video("sheet", n_frames=6, size=(96, 128), grid=13, seed=1, camera=cam)
+    _, truth = dt.write_video(video, tmp_path / "p")
+    loaded = dt.load_ground_truth(truth)
+    assert loaded.camera == video.camera and loaded.camera.principal == (64.0, 48.0)
+    np.testing.assert_array_equal(loaded.translations, video.translations)
+    np.testing.assert_array_equal(loaded.extra["intrinsics"], video.intrinsics)
+    T = video.project(video.vertices)[:, :, ::5]
+    a, b = video.ground_truth(T), loaded.ground_truth(T)
+    np.testing.assert_allclose(b["camera"], a["camera"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b["pixels"], T, atol=1e-6)
+    data = dict(np.load(truth))
+    del data["translations"]
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(ValueError, match="pinhole camera needs"):
+        dt.load_ground_truth(tmp_path / "bad.npz")
