@@ -207,7 +207,9 @@ def score_tracks(truth, tracks, vr):
         ``n_tracks``, ``n_used`` (tracks in the reconstruction), ``n_scored`` (of those,
         the ones that started on the surface), ``e3d``, ``e3d_akhter`` and ``e_R`` over the
         scored tracks, computed as :meth:`nrsfm.Reconstruction.errors` computes them (the
-        cameras move: world-frame shapes for ``e3d_akhter``).
+        cameras move: world-frame shapes for ``e3d_akhter``). With a pinhole camera the
+        truth is metric (world units): ``e3d`` ignores the scale, ``e3d_akhter`` does not
+        (it expects the reconstruction in the truth's units).
 
     Raises
     ------
