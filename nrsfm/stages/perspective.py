@@ -368,10 +368,8 @@ class _Fit:
         """Frames eliminated, the reduced system in the basis solved inexactly: conjugate
         gradients with each point's block of it as preconditioner, in the centred subspace."""
         (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
-        Li = np.linalg.inv(np.linalg.cholesky(Ad))
-        N = Li @ M.reshape(F, nf, 3 * P)  # L^-1 M_f
+        Li, N, h, r = _eliminate_frames(Ad, M, C, gf, gb)
         Nt = np.ascontiguousarray(np.swapaxes(N, 1, 2))
-        h = (Li @ gf[:, :, None])[..., 0]
         Nc = np.ascontiguousarray(np.moveaxis(N.reshape(F, nf, P, 3), 3, 1))
         Q = np.einsum("fcip,fdip->fpcd", Nc, Nc)  # each point's 3 x 3 block of N_f' N_f
         Gd = (_pairs(C).T @ Q.reshape(F, 9 * P)).reshape(K, K, P, 3, 3)
@@ -388,9 +386,6 @@ class _Fit:
             z = (Minv @ r[:, :, None])[..., 0]
             return z - z.mean(0)
 
-        u = (Nt @ h[:, :, None])[..., 0]  # (F, 3P)
-        Nh = (C.T @ u).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, nb)
-        r = -gb + Nh
         r -= r.mean(0)
         stop = eta * np.sqrt((r * r).sum())
         d = np.zeros_like(r)
@@ -409,9 +404,7 @@ class _Fit:
             p, rz = z + rzn / rz * p, rzn
         else:
             return None  # ill-conditioned: the caller factorises
-        D = (C @ d.reshape(P, K, 3)).reshape(P, F, 3).transpose(1, 0, 2).reshape(F, 3 * P, 1)
-        df = -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
-        return df, d
+        return _frames_step(Li, N, h, C, d), d
 
     @staticmethod
     def _keep_frames(Ad, Bd, Wc, gf, gb):
@@ -438,9 +431,7 @@ class _Fit:
         """Frames eliminated: the Schur complement onto the basis, sum_f (C_f C_f') x (N_f'
         N_f) with N_f = L_f^-1 M_f (its Kronecker form for a large K); the centring by nu."""
         (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
-        Li = np.linalg.inv(np.linalg.cholesky(Ad))
-        N = Li @ M.reshape(F, nf, 3 * P)  # L^-1 M_f
-        h = (Li @ gf[:, :, None])[..., 0]  # L^-1 g_f
+        Li, N, h, rhs = _eliminate_frames(Ad, M, C, gf, gb)
         n3 = 3 * P
         if K * K >= 2 * nf:  # the Kronecker form costs fewer flops than the full product
             CC, G = _pairs(C), np.zeros((K * K, n3 * n3))
@@ -456,15 +447,11 @@ class _Fit:
         S4 = S.reshape(P, nb, P, nb)  # a view
         S4[np.arange(P), :, np.arange(P), :] += Bd
         c = cho_factor(S)
-        u = (np.swapaxes(N, 1, 2) @ h[:, :, None])[..., 0]  # (F, 3P)
-        Nh = (C.T @ u).reshape(K, P, 3).transpose(1, 0, 2).ravel()
-        y = cho_solve(c, -gb.ravel() + Nh)
+        y = cho_solve(c, rhs.ravel())
         Y = cho_solve(c, np.tile(np.eye(nb), (P, 1)))  # S^-1 E' with E = [I ... I]
         nu = np.linalg.solve(Y.reshape(P, nb, nb).sum(0), y.reshape(P, nb).sum(0))
         db = (y - Y @ nu).reshape(P, nb)  # the centring: sum_p dB_p = 0
-        D = np.einsum("fk,pkc->fpc", C, db.reshape(P, K, 3)).reshape(F, n3, 1)
-        df = -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
-        return df, db
+        return _frames_step(Li, N, h, C, db), db
 
     def minimise(self, R, ab, C, B, st, known=(), tol=None):
         """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
@@ -522,6 +509,25 @@ class _Fit:
             if known and _near((R, ab, C, B), known):
                 return (R, ab, C, B), hist, None
         return (R, ab, C, B), hist, converged
+
+
+def _eliminate_frames(Ad, M, C, gf, gb):
+    """The frames' blocks eliminated (``Ad_f = L_f L_f'``): ``L_f^-1`` (F, nf, nf),
+    ``N_f = L_f^-1 M_f`` (F, nf, 3P), ``h_f = L_f^-1 g_f`` (F, nf) and the reduced system's
+    right-hand side ``-g_B + sum_f (C_f x N_f)' h_f`` (P, 3K)."""
+    (F, nf), (P, nb), K = gf.shape, gb.shape, C.shape[1]
+    Li = np.linalg.inv(np.linalg.cholesky(Ad))
+    N = Li @ M.reshape(F, nf, 3 * P)
+    h = (Li @ gf[:, :, None])[..., 0]
+    u = (np.swapaxes(N, 1, 2) @ h[:, :, None])[..., 0]  # (F, 3P)
+    return Li, N, h, -gb + (C.T @ u).reshape(K, P, 3).transpose(1, 0, 2).reshape(P, nb)
+
+
+def _frames_step(Li, N, h, C, db):
+    """The frames' steps (F, nf) given the basis step ``db`` (P, 3K) (back-substitution)."""
+    F, P, K = len(C), len(db), C.shape[1]
+    D = np.einsum("fk,pkc->fpc", C, db.reshape(P, K, 3)).reshape(F, 3 * P, 1)
+    return -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
 
 
 def _scaling(A, Bp):
@@ -654,7 +660,7 @@ def _polish(fit, out, st, say=None, what="fit"):
 
 def depth_ratio(R, ab, C, B):
     """The largest ratio of two points' depths in one frame of an answer of (*)."""
-    Z = (R @ np.einsum("fk,kcp->fcp", C, B))[:, 2] + 1.0
+    Z = _camera_points((R, ab, C, B))[:, 2]
     return float(np.max(Z.max(axis=1) / Z.min(axis=1)))
 
 
