@@ -349,14 +349,15 @@ def reconstruct(
             return _orthographic(W, K, rotations, settings, seed, say)
         x = normalise(W, camera)
         res = _orthographic(x.reshape(W.shape), K, None, settings, seed, say, warn=False)
-        one = None
-        if K > 1:  # the continuation's start: its own warnings are not the run's
+
+        def one():  # the continuation's start, when it is run: its warnings are not the run's
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 r1 = _orthographic(
                     x.reshape(W.shape), 1, None, settings, seed, lambda m: None, False
                 )
-            one = (r1.rotations, r1.shapes, r1.row_means.reshape(-1, 2))
+            return r1.rotations, r1.shapes, r1.row_means.reshape(-1, 2)
+
         with _timed(res.timings, "perspective"):
             sigma = res.shape_stage.X_init_singular_values * res.scale
             a = None if settings.prior is None else bilinear_weights(sigma, K, settings.prior)

@@ -42,6 +42,18 @@ def test_exact_perspective_data_are_reconstructed_exactly(K, motion):
     assert "perspective refinement: " in res.summary()
 
 
+@pytest.mark.parametrize("motion, disagree", [("smooth", True), ("random", False)])
+def test_the_continuation_runs_where_the_depth_order_starts_disagree(motion, disagree):
+    s = _seq(K=2, motion=motion)  # smooth, 30 frames: starts in two depth orders stay apart
+    said = []
+    res = nrsfm.reconstruct(s.W, 2, intrinsics=s.extra["intrinsics"], progress=said.append)
+    free = [m for m in said if m.startswith("perspective fit without prior, start")]
+    apart = sum(not m.endswith("near an earlier answer") for m in free)
+    assert (apart > 1) == disagree
+    assert any("from the rank-1 fit" in m for m in said) == disagree
+    assert res.errors(s.shapes)["e3d"] < 1e-8
+
+
 def test_camera_points_project_to_the_tracks():
     s = _seq()
     res = nrsfm.reconstruct(s.W, 2, intrinsics=s.extra["intrinsics"])

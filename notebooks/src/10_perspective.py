@@ -278,11 +278,11 @@ print(f"smallest difference between the two orders: {margin:.1f} px")
 # always so: where the start is further off than the perspective effect (MoCap bodies seen
 # from a few radii), a frame's choice at the start is a guess. So the library fits from
 # three starts, the orders as the orthographic answer has them, all reversed, and each
-# frame's own choice (and a fourth, grown from the rank-1 fit); after each fit it asks
-# every frame again at the answer (where the choice is clear, as above) and fits once more
-# if one changes. It fits without the prior from every start, stopping a fit that reaches
-# an earlier one's answer, then with the prior from each distinct answer; the fit with the
-# lowest objective is the answer.
+# frame's own choice; after a first fit it asks every frame again at the answer (where the
+# choice is clear, as above), and from then on after every step. It fits without the prior
+# from every start, stopping a fit that reaches an earlier one's answer (where the three
+# end apart, a fourth start grows from the rank-1 fit), then with the prior from each
+# distinct answer; the fit with the lowest objective is the answer.
 #
 # ## The cost along the iterations
 

@@ -22,12 +22,15 @@ answer on ``x`` (shapes in the same units at weak perspective) is its start. Wha
 orthographic model cannot tell is each frame's depth order, ``(R_f, S_f)`` or
 ``(Rz(pi) R_f, -S_f)`` (the same orthographic image, depths reversed): the rank-K
 orthographic answer is started in three orders (as it has them, all reversed, each frame's
-with the lower perspective residual), and after each fit every frame is asked again at the
-answer. One more start is the *continuation*: the rank-1 perspective fit, then K - 1 more
-columns started small. From every start (*) is fitted without the prior; a fit that comes
-within ``MERGE_TOL`` of an earlier one's answer stops (the same minimum). The best of these
-fits gives the noise and with it the prior's balance; the fit with the prior starts from
-each distinct minimum without it, and the answer is the lowest E of those within
+with the lower perspective residual), each held through a first fit, after which each
+frame's order is asked again after every step. From every start (*) is fitted without the
+prior; a fit that comes within ``MERGE_TOL`` of an earlier one's answer stops (the same
+minimum). Where the starts reach more than one minimum, one more start is the
+*continuation*: the rank-1 perspective fit, then K - 1 more columns started small (where
+all three reach one minimum, it has ended there too in every synthetic row of the
+benchmark). The best of these fits gives the noise and with it the prior's balance; the fit
+with the prior starts from each distinct minimum without it, and the answer is the lowest E
+of those within
 ``MAX_DEPTH_RATIO`` (:func:`refine_perspective`; why: ``docs/studies/perspective.md``).
 Fits stop at ``LOOSE_TOL`` while the depth orders settle; the best ones (within
 ``POLISH_MARGIN`` of the lowest E) go on to the settings' ``tol``.
@@ -328,8 +331,7 @@ class _Fit:
         Jf[:, :, 5:] = iz[:, None, None] * RB[:, :2] - izu[:, :, None] * RB[:, 2:3]
         # d pi_i / d B_k[:, p] per unit of C_fk: (F, 2, 3, P)
         JR = iz[:, None, None] * R[:, :2, :, None] - izu[:, :, None] * R[:, 2, None, :, None]
-        A = Jf.transpose(0, 2, 1, 3).reshape(F, nf, 2 * P)
-        A = A @ np.swapaxes(A, 1, 2)
+        A = sum(J @ np.swapaxes(J, 1, 2) for J in (Jf[:, 0], Jf[:, 1]))
         M = np.einsum("finp,ficp->fnpc", Jf, JR)
         gf = np.einsum("finp,fip->fn", Jf, r)
         QR = np.einsum("ficp,fidp->fpcd", JR, JR).reshape(F, 9 * P)
@@ -453,12 +455,13 @@ class _Fit:
         db = (y - Y @ nu).reshape(P, nb)  # the centring: sum_p dB_p = 0
         return _frames_step(Li, N, h, C, db), db
 
-    def minimise(self, R, ab, C, B, st, known=(), tol=None):
+    def minimise(self, R, ab, C, B, st, known=(), tol=None, flips=False):
         """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
         actual to the predicted decrease (Nielsen 1999): the final state, the history and
         whether it converged; ``None`` for the last where the fit came within ``MERGE_TOL``
         of an answer in ``known`` (camera points, :func:`_camera_points`), whose minimum
-        it is reaching."""
+        it is reaching. ``flips``: after each step, flip the frames whose other depth order
+        has the lower residual (:func:`_depth_orders`; E falls: each frame's term does)."""
         E, data = self.cost(R, ab, C, B)
         self.factorise = False
         hist = {"cost": [E], "data_term": [data], "damping": [np.nan]}
@@ -496,6 +499,10 @@ class _Fit:
             Eb, db_ = self.cost(R, ab, Cb, Bb)
             if Eb <= En:  # (not at rounding level, where balancing may add to E)
                 C, B, En, dn = Cb, Bb, Eb, db_
+            flip = np.logical_and(*_depth_orders(self, R, ab, C, B)) if flips else None
+            if flip is not None and flip.any():
+                R, ab, C, B = _flip((R, ab, C, B), flip)
+                En, dn = self.cost(R, ab, C, B)
             # converged: a decrease below tol E by a step close to Gauss-Newton's (a heavily
             # damped step's small decrease is a slow phase, as near a saddle)
             # ; or E at rounding level
@@ -526,7 +533,7 @@ def _eliminate_frames(Ad, M, C, gf, gb):
 def _frames_step(Li, N, h, C, db):
     """The frames' steps (F, nf) given the basis step ``db`` (P, 3K) (back-substitution)."""
     F, P, K = len(C), len(db), C.shape[1]
-    D = np.einsum("fk,pkc->fpc", C, db.reshape(P, K, 3)).reshape(F, 3 * P, 1)
+    D = (C @ db.reshape(P, K, 3).transpose(1, 0, 2).reshape(K, 3 * P)).reshape(F, 3 * P, 1)
     return -(np.swapaxes(Li, 1, 2) @ (h[:, :, None] + N @ D))[..., 0]
 
 
@@ -600,15 +607,17 @@ def _orders(fit, state):
 
 
 def _fit_orders(fit, state, st, say=None, what="fit", known=()):
-    """Minimise (*) from ``state`` to ``LOOSE_TOL``; where another depth order lowers a
-    frame's residual at the answer, flip those frames and minimise again (at most
-    ``MAX_FLIP_ROUNDS`` times): the order is discrete, the fit continuous. ``say(message)``:
+    """Minimise (*) from ``state`` to ``LOOSE_TOL`` in the start's depth orders; where another
+    order lowers a frame's residual at the answer, flip those frames and minimise again, each
+    frame's order now re-chosen after every step (:meth:`_Fit.minimise` ``flips``; the order
+    is discrete, the fit continuous), at most ``MAX_FLIP_ROUNDS`` times. ``say(message)``:
     progress. Returns (state, history, converged), or None where the fit came near an
     answer in ``known`` (:meth:`_Fit.minimise`); :func:`_polish` takes it on to ``st.tol``."""
     loose = max(st.tol, LOOSE_TOL)
     n = 0
     for round_ in range(MAX_FLIP_ROUNDS + 1):
-        state, hist, converged = fit.minimise(*state, st, known, tol=loose)
+        flips = round_ > 0  # the start's orders are its hypothesis: held through one fit
+        state, hist, converged = fit.minimise(*state, st, known, tol=loose, flips=flips)
         n += len(hist["cost"]) - 1
         if converged is None:
             break
@@ -623,11 +632,12 @@ def _fit_orders(fit, state, st, say=None, what="fit", known=()):
     return out
 
 
-def _fits(fit, starts, st, say=None):
+def _fits(fit, starts, st, say=None, out=None):
     """:func:`_fit_orders` from each of ``starts`` (name -> (what, state)); a fit that comes
-    near an earlier one's answer stops there and is left out: name -> (state, history,
-    converged)."""
-    out, known = {}, []
+    near an earlier one's answer (or one in ``out``) stops there and is left out: ``out``
+    with the new fits added, name -> (state, history, converged)."""
+    out = {} if out is None else dict(out)
+    known = [_camera_points(r[0]) for r in out.values()]
     for name, (what, s0) in starts.items():
         r = _fit_orders(fit, s0, st, say, what, known)
         if r is not None:
@@ -648,14 +658,31 @@ def _polished(fit, fits, st, say=None, what="fit from"):
 
 
 def _polish(fit, out, st, say=None, what="fit"):
-    """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history."""
-    state, hist, _ = out
+    """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history.
+    ``out`` a state alone: the fit from it."""
+    state, hist, _ = out if isinstance(out, tuple) and len(out) == 3 else (out, None, None)
     state, more, converged = fit.minimise(*state, st)
-    hist = {k: hist[k] + more[k][1:] for k in hist}
+    hist = more if hist is None else {k: hist[k] + more[k][1:] for k in hist}
     if say is not None:
         n, E = len(more["cost"]) - 1, hist["cost"][-1]
         say(f"perspective {what} to tol: {n} iterations, E {E:.4g}")
     return state, hist, converged
+
+
+def _continuation(one, rank_one, X0, K, st, say=None):
+    """The continuation's start: the rank-1 fit (``one``, :func:`_fits` from the depth orders
+    of the rank-1 orthographic answer ``rank_one``) with K - 1 small columns in the
+    directions of the rank-K answer's shapes ``X0``; None where every order puts points
+    behind the camera."""
+    starts = _orders(one, _start(*rank_one, 1))
+    if not starts:
+        return None
+    fits = _fits(one, {i: ("rank-1 fit", s1) for i, s1 in enumerate(starts)}, st, say)
+    R1, ab1, C1, B1 = _best(list(fits.values()))[0]
+    _, Bd = _factors(X0, K)
+    Bn = _SMALL * np.linalg.norm(B1) * Bd[1:] / np.linalg.norm(Bd[1:], axis=(1, 2))[:, None, None]
+    Cn = np.full((len(C1), K - 1), _SMALL * np.linalg.norm(C1) / np.sqrt(len(C1)))
+    return R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn])
 
 
 def depth_ratio(R, ab, C, B):
@@ -721,8 +748,9 @@ def refine_perspective(
     K : int
     direct : tuple (rotations (F, 3, 3), shapes (F, 3, P), centroids (F, 2))
         The rank-K orthographic answer on ``x``: shapes in the units of x, centred.
-    rank_one : tuple or None
-        The same at K = 1 (the continuation's start); None: the direct start only.
+    rank_one : tuple, callable returning one, or None
+        The same at K = 1 (the continuation's start), called only where the continuation
+        is run (the direct starts reach more than one minimum); None: no continuation.
     weights : (K,) array_like or None
         The prior's weights ``a_k`` (:func:`nrsfm.stages.shape.bilinear.bilinear_weights`);
         None: no prior (the method ``pseudo_inverse``).
@@ -756,23 +784,16 @@ def refine_perspective(
             "check the intrinsics (the focal length in pixels, the principal point)"
         )
     names = ("direct", "direct 2", "direct 3")
-    todo = {names[i]: (f"fit without prior, start {i + 1}", s0) for i, s0 in enumerate(starts)}
-    one = _Fit(xs, m, np.zeros(1))
-    starts_1 = [] if rank_one is None or K == 1 else _orders(one, _start(*rank_one, 1))
-    if starts_1:  # the rank-1 fit, K - 1 small columns added (none: points behind)
-        fits_1 = _fits(one, {i: ("rank-1 fit", s1) for i, s1 in enumerate(starts_1)}, st, progress)
-        R1, ab1, C1, B1 = _best(list(fits_1.values()))[0]
-        _, Bd = _factors(X0, K)  # the new columns: the rank-K answer's directions, small
-        Bn = (
-            _SMALL
-            * np.linalg.norm(B1)
-            * Bd[1:]
-            / np.linalg.norm(Bd[1:], axis=(1, 2))[:, None, None]
-        )
-        Cn = np.full((F, K - 1), _SMALL * np.linalg.norm(C1) / np.sqrt(F))
-        s0 = (R1, ab1, np.column_stack([C1, Cn]), np.concatenate([B1, Bn]))
-        todo["continuation"] = ("fit without prior from the rank-1 fit", s0)
+    todo = {
+        n: (f"fit without prior, start {i + 1}", s0) for i, (n, s0) in enumerate(zip(names, starts))
+    }
     fits = _fits(free, todo, st, progress)  # the distinct minima without prior
+    if len(fits) > 1 and K > 1 and rank_one is not None:  # the starts disagree: one more
+        rank_one = rank_one() if callable(rank_one) else rank_one
+        s0 = _continuation(_Fit(xs, m, np.zeros(1)), rank_one, X0, K, st, progress)
+        if s0 is not None:
+            todo = {"continuation": ("fit without prior from the rank-1 fit", s0)}
+            fits = _fits(free, todo, st, progress, fits)
     fits = _polished(free, fits, st, progress, "fit without prior from")
     best_free = min(fits.values(), key=lambda f: f[1]["cost"][-1])
     noise = _noise(free, best_free[0], K)  # the best fit measures it
@@ -782,12 +803,16 @@ def refine_perspective(
         bal.mu_noise * noise**2 * (F + 2 * P) / max(float(sigma_1 or 0.0), 1e-300),
     )
     reg = mu * (np.zeros(K) if weights is None else np.asarray(weights, float))
-    fit = _Fit(xs, m, reg)
-    # the prior from each distinct minimum without it (the best ones on to st.tol)
-    runs = _fits(
-        fit, {k: (f"fit with the prior from {k}", v[0]) for k, v in fits.items()}, st, progress
-    )
-    runs = _polished(fit, runs, st, progress, "fit with the prior from")
+    what = "fit with the prior from"
+    if np.any(reg) and len(fits) > 1:  # from each distinct minimum without it, compared
+        fit = _Fit(xs, m, reg)
+        todo = {k: (f"{what} {k}", v[0]) for k, v in fits.items()}
+        runs = _polished(fit, _fits(fit, todo, st, progress), st, progress, what)
+    elif np.any(reg):  # one minimum: its fit with the prior straight on to st.tol
+        fit, ((k, v),) = _Fit(xs, m, reg), fits.items()
+        runs = {k: _polish(fit, v[0], st, progress, f"{what} {k}")}
+    else:  # no prior (K = 1: a_1 = 0): the fits without it are the answers
+        runs = {k: (v[0], {n: h[-1:] for n, h in v[1].items()}, v[2]) for k, v in fits.items()}
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
     best = next(k for k, v in runs.items() if v is _best(list(runs.values())))  # first: tie
     (R, ab, C, B), hist, converged = runs[best]
