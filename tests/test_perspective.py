@@ -133,6 +133,21 @@ def test_depth_ratio_of_an_answer():
     assert pp.depth_ratio(R, np.zeros((2, 2)), np.ones((2, 1)), B) == pytest.approx(3.0)
 
 
+def test_a_fit_stops_where_it_leaves_the_depth_ratio(monkeypatch):
+    s = _seq()
+    x = pp.normalise(s.W, s.extra["intrinsics"])
+    o = _orthographic(s.W, 2, s.extra["intrinsics"])
+    state = pp._start(o.rotations, o.shapes, x.mean(axis=2), 2)
+    fit = pp._Fit(x, np.ones((30, 30)), np.zeros(2))
+    _, hist, converged = fit.minimise(*state, nrsfm.PerspectiveSettings(), bound=1.0)
+    assert len(hist["cost"]) == 2 and converged is False  # every answer's ratio is above 1
+    # no fit within the bound: they are taken on without it, to the exact answer, and warn
+    monkeypatch.setattr(pp, "MAX_DEPTH_RATIO", 1.0)
+    with pytest.warns(nrsfm.NRSfMWarning, match="W-perspective-depth"):
+        res = nrsfm.reconstruct(s.W, 2, intrinsics=s.extra["intrinsics"])
+    assert res.errors(s.shapes)["e3d"] < 1e-8 and res.perspective.converged
+
+
 def test_cli_run_with_a_camera(tmp_path):
     from nrsfm.cli import main
 

@@ -30,10 +30,11 @@ minimum). Where the starts reach more than one minimum, one more start is the
 all three reach one minimum, it has ended there too in every synthetic row of the
 benchmark). The best of these fits gives the noise and with it the prior's balance; the fit
 with the prior starts from each distinct minimum without it, and the answer is the lowest E
-of those within
-``MAX_DEPTH_RATIO`` (:func:`refine_perspective`; why: ``docs/studies/perspective.md``).
-Fits stop at ``LOOSE_TOL`` while the depth orders settle; the best ones (within
-``POLISH_MARGIN`` of the lowest E) go on to the settings' ``tol``.
+of those within ``MAX_DEPTH_RATIO`` (:func:`refine_perspective`; why:
+``docs/studies/perspective.md``). Fits stop at ``LOOSE_TOL`` while the depth orders settle;
+the best ones (within ``POLISH_MARGIN`` of the lowest E) go on to the settings' ``tol``. A
+fit whose depth ratio rises above ``MAX_DEPTH_RATIO`` stops there (it cannot be the
+answer); only where no fit stays within it are they taken on without that bound.
 
 Minimised by Levenberg-Marquardt with the analytic Jacobian; the larger of the per-frame
 block set (rotation, translation, coefficients) and the per-point one (the basis) is
@@ -99,7 +100,8 @@ CG_MAX_ITER = 50
 #: the largest ratio of two points' depths in one frame for an answer to count as a camera
 #: outside the object: (d + r) / (d - r) = 10 puts the camera d = 11/9 r from the centroid
 #: of an object of radius r; a fit beyond it stretches points towards the camera's centre
-#: and away (the depth the data leave undetermined), and loses to any answer within it
+#: and away (the depth the data leave undetermined), and loses to any answer within it; a
+#: fit that rises above it stops there
 MAX_DEPTH_RATIO = 10.0
 
 
@@ -455,13 +457,15 @@ class _Fit:
         db = (y - Y @ nu).reshape(P, nb)  # the centring: sum_p dB_p = 0
         return _frames_step(Li, N, h, C, db), db
 
-    def minimise(self, R, ab, C, B, st, known=(), tol=None, flips=False):
+    def minimise(self, R, ab, C, B, st, known=(), tol=None, flips=False, bound=None):
         """Levenberg-Marquardt from (R, ab, C, B), the damping updated by the ratio of the
         actual to the predicted decrease (Nielsen 1999): the final state, the history and
         whether it converged; ``None`` for the last where the fit came within ``MERGE_TOL``
         of an answer in ``known`` (camera points, :func:`_camera_points`), whose minimum
         it is reaching. ``flips``: after each step, flip the frames whose other depth order
-        has the lower residual (:func:`_depth_orders`; E falls: each frame's term does)."""
+        has the lower residual (:func:`_depth_orders`; E falls: each frame's term does).
+        ``bound``: stop (not converged) where the depth ratio (:func:`depth_ratio`) rises
+        above it: the fit has left the answers that can be chosen (:func:`_best`)."""
         E, data = self.cost(R, ab, C, B)
         self.factorise = False
         hist = {"cost": [E], "data_term": [data], "damping": [np.nan]}
@@ -511,7 +515,7 @@ class _Fit:
             E = En
             for k, v in (("cost", E), ("data_term", dn), ("damping", lam)):
                 hist[k].append(v)
-            if converged:
+            if converged or (bound is not None and depth_ratio(R, ab, C, B) > bound):
                 break
             if known and _near((R, ab, C, B), known):
                 return (R, ab, C, B), hist, None
@@ -610,16 +614,19 @@ def _fit_orders(fit, state, st, say=None, what="fit", known=()):
     """Minimise (*) from ``state`` to ``LOOSE_TOL`` in the start's depth orders; where another
     order lowers a frame's residual at the answer, flip those frames and minimise again, each
     frame's order now re-chosen after every step (:meth:`_Fit.minimise` ``flips``; the order
-    is discrete, the fit continuous), at most ``MAX_FLIP_ROUNDS`` times. ``say(message)``:
-    progress. Returns (state, history, converged), or None where the fit came near an
-    answer in ``known`` (:meth:`_Fit.minimise`); :func:`_polish` takes it on to ``st.tol``."""
+    is discrete, the fit continuous), at most ``MAX_FLIP_ROUNDS`` times; a fit whose depth
+    ratio rises above ``MAX_DEPTH_RATIO`` stops there. ``say(message)``: progress. Returns
+    (state, history, converged), or None where the fit came near an answer in ``known``
+    (:meth:`_Fit.minimise`); :func:`_polish` takes it on to ``st.tol``."""
     loose = max(st.tol, LOOSE_TOL)
     n = 0
     for round_ in range(MAX_FLIP_ROUNDS + 1):
         flips = round_ > 0  # the start's orders are its hypothesis: held through one fit
-        state, hist, converged = fit.minimise(*state, st, known, tol=loose, flips=flips)
+        state, hist, converged = fit.minimise(
+            *state, st, known, tol=loose, flips=flips, bound=MAX_DEPTH_RATIO
+        )
         n += len(hist["cost"]) - 1
-        if converged is None:
+        if converged is None or depth_ratio(*state) > MAX_DEPTH_RATIO:
             break
         flip = np.logical_and(*_depth_orders(fit, *state))
         if not flip.any() or round_ == MAX_FLIP_ROUNDS:
@@ -647,21 +654,25 @@ def _fits(fit, starts, st, say=None, out=None):
 
 
 def _polished(fit, fits, st, say=None, what="fit from"):
-    """``fits`` (name -> fit of :func:`_fit_orders`) with those whose E is within
-    ``POLISH_MARGIN`` of the lowest (within ``MAX_DEPTH_RATIO``) taken on to ``st.tol``."""
-    E0 = _best(list(fits.values()))[1]["cost"][-1]
+    """``fits`` (name -> fit of :func:`_fit_orders`) with those within ``MAX_DEPTH_RATIO``
+    whose E is within ``POLISH_MARGIN`` of the lowest of them taken on to ``st.tol`` (a fit
+    that leaves the ratio stops); where none is within it, those near the lowest of all,
+    without the bound."""
+    within = {n: f for n, f in fits.items() if depth_ratio(*f[0]) <= MAX_DEPTH_RATIO}
+    pool, bound = (within, MAX_DEPTH_RATIO) if within else (fits, None)
+    E0 = min(f[1]["cost"][-1] for f in pool.values())
     out = dict(fits)
-    for name, f in fits.items():
+    for name, f in pool.items():
         if f[1]["cost"][-1] <= (1 + POLISH_MARGIN) * E0:
-            out[name] = _polish(fit, f, st, say, f"{what} {name}")
+            out[name] = _polish(fit, f, st, say, f"{what} {name}", bound)
     return out
 
 
-def _polish(fit, out, st, say=None, what="fit"):
+def _polish(fit, out, st, say=None, what="fit", bound=None):
     """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history.
     ``out`` a state alone: the fit from it."""
     state, hist, _ = out if isinstance(out, tuple) and len(out) == 3 else (out, None, None)
-    state, more, converged = fit.minimise(*state, st)
+    state, more, converged = fit.minimise(*state, st, bound=bound)
     hist = more if hist is None else {k: hist[k] + more[k][1:] for k in hist}
     if say is not None:
         n, E = len(more["cost"]) - 1, hist["cost"][-1]
@@ -810,7 +821,8 @@ def refine_perspective(
         runs = _polished(fit, _fits(fit, todo, st, progress), st, progress, what)
     elif np.any(reg):  # one minimum: its fit with the prior straight on to st.tol
         fit, ((k, v),) = _Fit(xs, m, reg), fits.items()
-        runs = {k: _polish(fit, v[0], st, progress, f"{what} {k}")}
+        bound = MAX_DEPTH_RATIO if depth_ratio(*v[0]) <= MAX_DEPTH_RATIO else None
+        runs = {k: _polish(fit, v[0], st, progress, f"{what} {k}", bound)}
     else:  # no prior (K = 1: a_1 = 0): the fits without it are the answers
         runs = {k: (v[0], {n: h[-1:] for n, h in v[1].items()}, v[2]) for k, v in fits.items()}
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
