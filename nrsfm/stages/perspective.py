@@ -669,9 +669,9 @@ def _polished(fit, fits, st, say=None, what="fit from"):
 
 
 def _polish(fit, out, st, say=None, what="fit", bound=None):
-    """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history.
-    ``out`` a state alone: the fit from it."""
-    state, hist, _ = out if isinstance(out, tuple) and len(out) == 3 else (out, None, None)
+    """A fit of :func:`_fit_orders` taken on to ``st.tol`` in its depth orders; one history
+    (``out`` with history None: the fit from its state)."""
+    state, hist, _ = out
     state, more, converged = fit.minimise(*state, st, bound=bound)
     hist = more if hist is None else {k: hist[k] + more[k][1:] for k in hist}
     if say is not None:
@@ -799,7 +799,7 @@ def refine_perspective(
         n: (f"fit without prior, start {i + 1}", s0) for i, (n, s0) in enumerate(zip(names, starts))
     }
     fits = _fits(free, todo, st, progress)  # the distinct minima without prior
-    if len(fits) > 1 and K > 1 and rank_one is not None:  # the starts disagree: one more
+    if len(fits) > 1 and K > 1 and rank_one is not None:  # they disagree: the continuation
         rank_one = rank_one() if callable(rank_one) else rank_one
         s0 = _continuation(_Fit(xs, m, np.zeros(1)), rank_one, X0, K, st, progress)
         if s0 is not None:
@@ -822,7 +822,7 @@ def refine_perspective(
     elif np.any(reg):  # one minimum: its fit with the prior straight on to st.tol
         fit, ((k, v),) = _Fit(xs, m, reg), fits.items()
         bound = MAX_DEPTH_RATIO if depth_ratio(*v[0]) <= MAX_DEPTH_RATIO else None
-        runs = {k: _polish(fit, v[0], st, progress, f"{what} {k}", bound)}
+        runs = {k: _polish(fit, (v[0], None, None), st, progress, f"{what} {k}", bound)}
     else:  # no prior (K = 1: a_1 = 0): the fits without it are the answers
         runs = {k: (v[0], {n: h[-1:] for n, h in v[1].items()}, v[2]) for k, v in fits.items()}
     objectives = {k: v[1]["cost"][-1] for k, v in runs.items()}
