@@ -14,6 +14,7 @@ import nrsfm  # noqa: E402
 from nrsfm.geometry import align_similarity as similarity_align  # noqa: E402
 from nrsfm.metrics import camera_alignment  # noqa: E402
 from nrsfm.views import build_recording, recording_content, save_recording  # noqa: E402
+from rrd_reading import column, read_rrd  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -56,29 +57,6 @@ def _stand_in_stages(result, seq, n_iter=9, seed=0):
         solver="admm",
     )
     return dataclasses.replace(result, rotation_stage=rotation_stage, shape_stage=shape_stage)
-
-
-def read_rrd(path):
-    """entity path -> {'static': [record batches], 'temporal': [record batches]}."""
-    out = {}
-    for chunk in RrdReader(path).stream().to_chunks():
-        d = out.setdefault(chunk.entity_path, {"static": [], "temporal": []})
-        d["static" if chunk.is_static else "temporal"].append(chunk.to_record_batch())
-    return out
-
-
-def column(batches, name, index=None):
-    """Concatenate a component column over batches, sorted by ``index`` when given."""
-    vals, idx = [], []
-    for b in batches:
-        if name in b.schema.names:
-            vals += b.column(name).to_pylist()
-            if index:
-                idx += b.column(index).to_pylist()
-    if index:
-        order = np.argsort(idx, kind="stable")
-        return [vals[i] for i in order], np.asarray(idx)[order]
-    return vals
 
 
 def test_pseudo_inverse_recording(tmp_path, seq, pinv_result):

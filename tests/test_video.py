@@ -453,28 +453,6 @@ def test_video_completion_converges(video, detect_every):
 # --------------------------------------------------------------------------- perspective
 
 
-def _read_rrd(path):
-    """entity path -> {'static': [record batches], 'temporal': [record batches]}."""
-    from rerun.chunk import RrdReader
-
-    out = {}
-    for chunk in RrdReader(path).stream().to_chunks():
-        d = out.setdefault(chunk.entity_path, {"static": [], "temporal": []})
-        d["static" if chunk.is_static else "temporal"].append(chunk.to_record_batch())
-    return out
-
-
-def _column(batches, name):
-    """A component column over batches, in frame order (the static ones: as logged)."""
-    vals, idx = [], []
-    for b in batches:
-        if name in b.schema.names:
-            vals += b.column(name).to_pylist()
-            if "frame" in b.schema.names:
-                idx += b.column("frame").to_pylist()
-    return [vals[i] for i in np.argsort(idx, kind="stable")] if idx else vals
-
-
 PERSPECTIVE_PATHS = ("/world/cameras/estimate", "/world/trajectory/estimate", "/video/perspective")
 
 
@@ -507,6 +485,7 @@ def test_video_recording_of_a_perspective_run_shows_the_cameras(
     aligned onto them, e3d as before. Without one: none of these."""
     from nrsfm.metrics import e3d
     from nrsfm.views.video import aligned_subset, decimate, save_video_recording
+    from rrd_reading import column, read_rrd
 
     s, tracks, frames, used, A = pinhole_video
     F, zoom = s.n_frames, 0.8
@@ -516,15 +495,17 @@ def test_video_recording_of_a_perspective_run_shows_the_cameras(
     path = tmp_path / "p.rrd"
     kw = dict(shapes_gt=gt, max_points_2d=20, max_points_3d=None)
     info = save_video_recording(path, frames, tracks, res, used, **kw)
-    data = _read_rrd(path)
+    data = read_rrd(path)
     assert info["points_2d"] == 20 and info["points_3d"] == used.sum()
-    e = _column(data["/errors/e3d"]["temporal"], "Scalars:scalars")
+    e = column(data["/errors/e3d"]["temporal"], "Scalars:scalars", "frame")[0]
     np.testing.assert_allclose(np.ravel(e), e3d(res.shapes, gt, per_frame=True), atol=1e-9)
     per = aligned_subset(res.shapes, gt, np.arange(res.n_points))[0]
     np.testing.assert_allclose(np.ravel(e), per, rtol=1e-12, atol=1e-15)  # as without camera
-    est = np.asarray(_column(data["/world/estimate"]["temporal"], "Points3D:positions"))
-    truth = np.asarray(_column(data["/world/ground_truth"]["temporal"], "Points3D:positions"))
-    report = _column(data["/run/report"]["static"], "TextDocument:text")[0][0]
+    est = np.asarray(column(data["/world/estimate"]["temporal"], "Points3D:positions", "frame")[0])
+    truth = np.asarray(
+        column(data["/world/ground_truth"]["temporal"], "Points3D:positions", "frame")[0]
+    )
+    report = column(data["/run/report"]["static"], "TextDocument:text")[0][0]
     if not perspective:
         assert not set(PERSPECTIVE_PATHS) & set(data)
         assert not any(q.startswith("/world/cameras") for q in data)
@@ -535,12 +516,14 @@ def test_video_recording_of_a_perspective_run_shows_the_cameras(
     assert set(PERSPECTIVE_PATHS) <= set(data)
     # the cameras at their centres, the frame's full-resolution frustum, their trajectory
     cams = data["/world/cameras/estimate"]
-    centres = np.asarray(_column(cams["temporal"], "Transform3D:translation")).reshape(F, 3)
+    centres = np.asarray(column(cams["temporal"], "Transform3D:translation", "frame")[0]).reshape(
+        F, 3
+    )
     np.testing.assert_allclose(centres, -np.einsum("fji,fj->fi", p.rotations, p.translations))
-    K_cam = _column(cams["static"], "Pinhole:image_from_camera")[0][0]
+    K_cam = column(cams["static"], "Pinhole:image_from_camera")[0][0]
     np.testing.assert_allclose(np.reshape(K_cam, (3, 3)).T, A, rtol=1e-6)
-    np.testing.assert_allclose(_column(cams["static"], "Pinhole:resolution")[0][0], [800, 600])
-    strip = _column(data["/world/trajectory/estimate"]["static"], "LineStrips3D:strips")[0][0]
+    np.testing.assert_allclose(column(cams["static"], "Pinhole:resolution")[0][0], [800, 600])
+    strip = column(data["/world/trajectory/estimate"]["static"], "LineStrips3D:strips")[0][0]
     np.testing.assert_allclose(np.asarray(strip), centres, rtol=1e-6)
     # the shapes as returned, the truth aligned onto them (exact data: the same points)
     np.testing.assert_allclose(est, res.shapes.transpose(0, 2, 1), atol=1e-6)
@@ -548,11 +531,15 @@ def test_video_recording_of_a_perspective_run_shows_the_cameras(
     # the projection of the drawn tracks that were used: the tracks, at the display's scale
     drawn = decimate(tracks.n_points, 20)
     drawn = drawn[used[drawn]]
-    pts = np.asarray(_column(data["/video/perspective"]["temporal"], "Points2D:positions"))
+    pts = np.asarray(
+        column(data["/video/perspective"]["temporal"], "Points2D:positions", "frame")[0]
+    )
     assert pts.shape == (F, len(drawn), 2) and len(drawn) == 19
     np.testing.assert_allclose(pts, zoom * tracks.tracks[:, :, drawn].transpose(0, 2, 1), atol=1e-3)
-    order = _column(data["/video/perspective"]["static"], "Points2D:draw_order")[0][0]
-    assert order > _column(data["/video/tracks"]["temporal"], "Points2D:draw_order")[0][0]
+    order = column(data["/video/perspective"]["static"], "Points2D:draw_order")[0][0]
+    assert (
+        order > column(data["/video/tracks"]["temporal"], "Points2D:draw_order", "frame")[0][0][0]
+    )
     rms = f"{p.reprojection_before:.4g} px (orthographic start) -> {p.reprojection_after:.4g} px"
     assert f"reprojection RMS {rms}; start {p.start}" in report
 
