@@ -234,11 +234,9 @@ class SyntheticVideo:
 
     def _frame_view(self, frame):
         """Pixels (V, 2) and camera-frame depths (V,) of the vertices in one frame."""
-        cam = self.rotations[frame] @ self.vertices[frame]
-        if self.camera is not None:
-            cam = cam + self.translations[frame][:, None]
-            return self.camera.project(cam[None])[0].T, cam[2]
-        return (self.pixel_scale * cam[:2] + self.offsets[frame][:, None]).T, cam[2]
+        t = None if self.camera is None else self.translations[frame]
+        args = (self.pixel_scale, self.offsets[frame], self.camera, t)
+        return _view(self.rotations[frame] @ self.vertices[frame], *args)
 
     def locate(self, points, frame=0):
         """Mesh location of pixel positions in a frame.
@@ -261,11 +259,11 @@ class SyntheticVideo:
             :meth:`world_points` projects back onto ``points``.
         """
         p = np.asarray(points, float).reshape(-1, 2)
+        view = None if frame == 0 and self.camera is None else self._frame_view(frame)
         if frame == 0:
             ids, affine = self.id0, self.affine0
         else:
-            pix, depth = self._frame_view(frame)
-            ids, affine = _id_buffer(self.triangles, pix, depth, self.id0.shape)
+            ids, affine = _id_buffer(self.triangles, *view, self.id0.shape)
         H, W = ids.shape
         xi = np.clip(np.rint(np.nan_to_num(p[:, 0])).astype(int), 0, W - 1)
         yi = np.clip(np.rint(np.nan_to_num(p[:, 1])).astype(int), 0, H - 1)
@@ -281,9 +279,8 @@ class SyntheticVideo:
         bary = np.full((len(p), 3), np.nan)
         ok = tri >= 0
         bary[ok] = np.einsum("pij,pj->pi", affine[tri[ok]], hom[ok])
-        if self.camera is not None:
-            depth = self._frame_view(frame)[1]
-            bary[ok] = _perspective_correct(bary[ok], 1.0 / depth[self.triangles[tri[ok]]])
+        if self.camera is not None:  # view: the frame's pixels and vertex depths
+            bary[ok] = _perspective_correct(bary[ok], 1.0 / view[1][self.triangles[tri[ok]]])
         return tri, bary
 
     def world_points(self, triangle, bary):
@@ -363,6 +360,16 @@ class SyntheticVideo:
             world_shapes=scale * gt["world"][:, :, ok],
             extra=extra,
         )
+
+
+def _view(cam, scale, offset, camera, t):
+    """Pixels (V, 2) and camera-frame depths (V,) of one frame's rotated vertices ``cam`` (3,
+    V): orthographic (``scale``, ``offset``), or through the pinhole ``camera`` after the
+    translation ``t``."""
+    if camera is None:
+        return (scale * cam[:2] + offset[:, None]).T, cam[2]
+    cam = cam + t[:, None]
+    return camera.project(cam[None])[0].T, cam[2]
 
 
 def _perspective_correct(bary, zinv):
@@ -524,14 +531,10 @@ def make_video(
     frames = np.empty((F, H, W, 3), np.uint8)
     id0 = affine0 = None
     for f in range(F):
-        cam = R[f] @ vertices[f]
-        if camera is None:
-            pix = (s * cam[:2] + offsets[f][:, None]).T
-        else:
-            cam = cam + translations[f][:, None]
-            pix = camera.project(cam[None])[0].T
+        t = None if camera is None else translations[f]
+        pix, depth = _view(R[f] @ vertices[f], s, offsets[f], camera, t)
         img, ids, affine = _render(
-            texture, uv_pix, tris, pix, cam[2], (H, W), background, pinhole=camera is not None
+            texture, uv_pix, tris, pix, depth, (H, W), background, pinhole=camera is not None
         )
         if noise:
             img = np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)

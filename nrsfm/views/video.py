@@ -145,8 +145,7 @@ def _log_world(rec, rr, result, tracks, used, shapes_gt, max_points):
 
 def _log_perspective(rec, rr, result, tracks, used, frames, zoom, max_points):
     """A perspective result's cameras (:func:`.recording.log_perspective_cameras`) and, over
-    the frames, the perspective projection of the drawn tracks that are used and determined;
-    returns how many tracks are projected."""
+    the frames, the perspective projection of the drawn tracks that are used and determined."""
     from .content import _pixels, perspective_cameras
     from .recording import log_perspective_cameras
 
@@ -165,13 +164,12 @@ def _log_perspective(rec, rr, result, tracks, used, frames, zoom, max_points):
     determined = np.zeros(tracks.n_points, bool)
     determined[np.flatnonzero(used)] = ~np.asarray(result.undetermined, bool)
     cols = column[sel[determined[sel]]]
-    Y = R @ np.asarray(p.shapes, float)[:, :, cols] + np.asarray(p.translations)[:, :, None]
+    Y = p.camera_points[:, :, cols]
     pix = (_pixels(Y[:, :2] / Y[:, 2:3], A) * zoom).astype(np.float32)
     rl.send_points_2d(rec, rr, "/video/perspective", pix, np.arange(F))
     r2 = 0.6 * max(1.0, 1.5 * zoom)  # smaller than the tracks', above them
     style = rr.Points2D.from_fields(colors=[PERSPECTIVE_COLOR], radii=[r2], draw_order=12)
     rec.log("/video/perspective", style, static=True)
-    return len(cols)
 
 
 def _video_report(tracks, result, frames, zoom, n2, n3, errs):
